@@ -1,0 +1,135 @@
+#!/usr/bin/env python3
+"""Renders the reference images that Snell's tests compare against.
+
+For every tests/scenes/*.xml and scenes/cornell-box.xml this renders the scene
+with Mitsuba 3 (llvm_ad_rgb when it loads, else scalar_rgb) at res=128 and a
+high sample count, as several passes with different seeds averaged in float64,
+and writes tests/references/<scene-stem>.exr (linear float32 RGB, uncompressed)
+plus tests/references/README.md describing how they were made.
+
+Usage (after tools/setup-mitsuba.sh):
+  .venv-mitsuba/bin/python tools/make_references.py [--spp 65536] [--pass-spp 1024]
+      [--res 128] [--variant llvm_ad_rgb] [scene.xml ...]
+"""
+import argparse
+import datetime
+import glob
+import os
+import re
+import sys
+import time
+
+import numpy as np
+
+os.environ.setdefault("DRJIT_LIBLLVM_PATH", "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1")
+import mitsuba as mi  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+from exrio import write_exr  # noqa: E402
+
+
+def pick_variant(wanted):
+    for v in ([wanted] if wanted else ["llvm_ad_rgb", "scalar_rgb"]):
+        try:
+            mi.set_variant(v)
+            # Force the backend to initialise (fails here if LLVM is missing)
+            mi.load_dict({"type": "diffuse"})
+            return v
+        except Exception as e:  # noqa: BLE001
+            print(f"variant {v} unavailable: {e}", file=sys.stderr)
+    sys.exit("no usable Mitsuba variant")
+
+
+def scene_defaults(path):
+    return set(re.findall(r'<default\s+name="([^"]+)"', open(path).read()))
+
+
+def render_reference(path, res, spp, pass_spp):
+    params = {"res": str(res), "spp": str(pass_spp)}
+    params = {k: v for k, v in params.items() if k in scene_defaults(path)}
+    scene = mi.load_file(path, **params)
+    n_passes = max(1, spp // pass_spp)
+    acc = acc2 = None
+    t0 = time.time()
+    for i in range(n_passes):
+        img = np.array(mi.render(scene, spp=pass_spp, seed=i), dtype=np.float64)
+        if acc is None:
+            acc, acc2 = np.zeros_like(img), np.zeros_like(img)
+        acc += img
+        acc2 += img * img
+    mean = acc / n_passes
+    # Standard error of the per-pixel mean, estimated from the pass spread
+    var = np.maximum(acc2 / n_passes - mean * mean, 0) / max(n_passes - 1, 1)
+    stderr = np.sqrt(var)
+    return mean.astype(np.float32), stderr, n_passes * pass_spp, time.time() - t0
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("scenes", nargs="*")
+    ap.add_argument("--spp", type=int, default=65536)
+    ap.add_argument("--pass-spp", type=int, default=1024)
+    ap.add_argument("--res", type=int, default=128)
+    ap.add_argument("--variant", default=None)
+    ap.add_argument("--out", default=os.path.join(ROOT, "tests", "references"))
+    ap.add_argument("--no-readme", action="store_true")
+    args = ap.parse_args()
+
+    variant = pick_variant(args.variant)
+    scenes = args.scenes or (sorted(glob.glob(os.path.join(ROOT, "tests", "scenes", "*.xml")))
+                             + [os.path.join(ROOT, "scenes", "cornell-box.xml")])
+    os.makedirs(args.out, exist_ok=True)
+    rows = []
+    for path in scenes:
+        stem = os.path.splitext(os.path.basename(path))[0]
+        img, stderr, spp, secs = render_reference(path, args.res, args.spp, args.pass_spp)
+        out = os.path.join(args.out, stem + ".exr")
+        write_exr(out, img)
+        m = img.reshape(-1, 3).mean(0)
+        rel = float(stderr.mean() / max(img.mean(), 1e-12))
+        print(f"{stem}: {img.shape[1]}x{img.shape[0]}, {spp} spp, {secs:.0f}s, "
+              f"mean RGB {m[0]:.5f} {m[1]:.5f} {m[2]:.5f}, "
+              f"mean pixel std-error / mean = {rel:.2e} -> {os.path.relpath(out, ROOT)}",
+              flush=True)
+        rows.append((stem, os.path.relpath(path, ROOT), img.shape[1], img.shape[0], spp,
+                     secs, m, rel))
+
+    if args.no_readme or args.scenes:
+        return
+    lines = [
+        "# Reference images",
+        "",
+        "Rendered by Mitsuba %s (variant `%s`) with `tools/make_references.py`:" % (
+            mi.__version__, variant),
+        "",
+        "```sh",
+        "bash tools/setup-mitsuba.sh",
+        "export DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1",
+        ".venv-mitsuba/bin/python tools/make_references.py --spp %d --pass-spp %d --res %d"
+        % (args.spp, args.pass_spp, args.res),
+        "```",
+        "",
+        "Each scene is loaded with `-D res=%d` (other defaults, e.g. `height`, as in the "
+        "file) and rendered as %d passes of %d spp with seeds 0..%d; the passes are averaged "
+        "in float64. Files are linear float32 RGB OpenEXR (uncompressed scanlines, "
+        "channels B,G,R as EXR sorts them), written by `tools/exrio.py`."
+        % (args.res, args.spp // args.pass_spp, args.pass_spp, args.spp // args.pass_spp - 1),
+        "",
+        "\"rel. std-error\" is the mean per-pixel standard error of the reference "
+        "(estimated from the spread of the passes) divided by the image mean.",
+        "",
+        "| reference | scene | size | spp | mean R | mean G | mean B | rel. std-error | render time |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for stem, scene, w, h, spp, secs, m, rel in rows:
+        lines.append(f"| {stem}.exr | {scene} | {w}x{h} | {spp} | {m[0]:.5f} | {m[1]:.5f} | "
+                     f"{m[2]:.5f} | {rel:.1e} | {secs:.0f} s |")
+    lines += ["", "Made on %s on a 2-core machine." % datetime.date.today().isoformat(), ""]
+    with open(os.path.join(args.out, "README.md"), "w") as f:
+        f.write("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
