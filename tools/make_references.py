@@ -117,6 +117,8 @@ def main():
         "channels B,G,R as EXR sorts them), written by `tools/exrio.py`."
         % (args.res, args.spp // args.pass_spp, args.pass_spp, args.spp // args.pass_spp - 1),
         "",
+        "Compare a Snell render made with the same parameters (`-D res=128`, other defaults untouched: spheres-direct and mesh-env keep `height=96`). Every scene sets its own integrator and filter; only `spp` and the seed differ.",
+        "",
         "\"rel. std-error\" is the mean per-pixel standard error of the reference "
         "(estimated from the spread of the passes) divided by the image mean.",
         "",
