@@ -131,6 +131,7 @@ def bench_mitsuba(args, argv):
 
 
 def main():
+    sys.stdout.reconfigure(line_buffering=True)  # keep order with the worker's stderr
     argv = sys.argv[1:]
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--runs", type=int, default=3)
