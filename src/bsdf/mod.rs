@@ -1,0 +1,108 @@
+//! BSDFs: how a surface scatters light.
+//!
+//! # The contract
+//! Everything happens in the local shading frame (z = shading normal):
+//! `wi` points from the surface towards where the path came from (the camera
+//! side), `wo` towards where it goes next (the light side).
+//!
+//! * [`Bsdf::eval`] returns f(wi, wo) · |cos θ_o| — the BSDF **times the
+//!   cosine foreshortening** of `wo` (Mitsuba's convention), so integrators
+//!   never multiply by a cosine themselves.
+//! * [`Bsdf::pdf`] is the solid-angle density with which `sample` picks `wo`.
+//! * [`Bsdf::sample`] returns `wo` with weight = eval / pdf, the pdf, the
+//!   relative IOR crossed and the lobe sampled.
+//! * `eval` and `pdf` are zero on delta lobes (specular reflection or
+//!   refraction); only `sample` produces them, flagged [`Lobe::DELTA`], and
+//!   integrators handle those samples explicitly (no emitter sampling, no MIS).
+
+pub mod diffuse;
+pub mod twosided;
+
+pub use diffuse::Diffuse;
+pub use twosided::TwoSided;
+
+use crate::geometry::SurfaceInteraction;
+use crate::spectrum::Spectrum;
+use bitflags::bitflags;
+use glam::{Vec2, Vec3};
+
+bitflags! {
+    /// Which kind of scattering a BSDF (or one sample of it) does.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct Lobe: u8 {
+        const DIFFUSE_REFLECTION = 1 << 0;
+        const DIFFUSE_TRANSMISSION = 1 << 1;
+        const GLOSSY_REFLECTION = 1 << 2;
+        const GLOSSY_TRANSMISSION = 1 << 3;
+        const DELTA_REFLECTION = 1 << 4;
+        const DELTA_TRANSMISSION = 1 << 5;
+        const DIFFUSE = Self::DIFFUSE_REFLECTION.bits() | Self::DIFFUSE_TRANSMISSION.bits();
+        const GLOSSY = Self::GLOSSY_REFLECTION.bits() | Self::GLOSSY_TRANSMISSION.bits();
+        const DELTA = Self::DELTA_REFLECTION.bits() | Self::DELTA_TRANSMISSION.bits();
+        /// Lobes with a density, where emitter sampling and MIS apply.
+        const SMOOTH = Self::DIFFUSE.bits() | Self::GLOSSY.bits();
+    }
+}
+
+/// Whether the path carries radiance (camera paths) or importance (light
+/// paths); non-symmetric BSDFs (refraction) scale differently in each.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum TransportMode {
+    #[default]
+    Radiance,
+    Importance,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfSample<S> {
+    pub wo: Vec3,
+    /// f · |cos θ_o| / pdf (for delta lobes: the lobe's total weight).
+    pub weight: S,
+    pub pdf: f32,
+    /// Relative index of refraction crossed (1 for reflection).
+    pub eta: f32,
+    pub lobe: Lobe,
+}
+
+#[derive(Clone, Debug)]
+pub enum Bsdf {
+    Diffuse(Diffuse),
+    TwoSided(TwoSided),
+}
+
+impl Bsdf {
+    pub fn lobes(&self) -> Lobe {
+        match self {
+            Bsdf::Diffuse(_) => Lobe::DIFFUSE_REFLECTION,
+            Bsdf::TwoSided(t) => t.lobes(),
+        }
+    }
+
+    #[inline]
+    pub fn eval<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
+        match self {
+            Bsdf::Diffuse(d) => d.eval(si, wi, wo, wl),
+            Bsdf::TwoSided(t) => t.eval(si, wi, wo, wl),
+        }
+    }
+
+    #[inline]
+    pub fn pdf(&self, si: &SurfaceInteraction, wi: Vec3, wo: Vec3) -> f32 {
+        match self {
+            Bsdf::Diffuse(d) => d.pdf(wi, wo),
+            Bsdf::TwoSided(t) => t.pdf(si, wi, wo),
+        }
+    }
+
+    /// `u1` picks a lobe, `u2` samples the direction within it.
+    #[inline]
+    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+        match self {
+            Bsdf::Diffuse(d) => d.sample(si, wi, u2, wl),
+            Bsdf::TwoSided(t) => t.sample(si, wi, u1, u2, wl),
+        }
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod testing;

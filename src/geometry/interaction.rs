@@ -1,0 +1,36 @@
+//! The record of a ray hitting a surface.
+
+use crate::math::Frame;
+use glam::{Vec2, Vec3};
+
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceInteraction {
+    pub p: Vec3,
+    pub t: f32,
+    /// Geometric normal (flip_normals applied).
+    pub n: Vec3,
+    /// Shading frame (interpolated vertex normal where the mesh has them).
+    pub frame: Frame,
+    pub uv: Vec2,
+    pub shape: u32,
+    /// Direction towards where the ray came from, in the local shading frame.
+    pub wi: Vec3,
+}
+
+impl SurfaceInteraction {
+    #[inline]
+    pub fn to_local(&self, v: Vec3) -> Vec3 {
+        self.frame.to_local(v)
+    }
+
+    #[inline]
+    pub fn to_world(&self, v: Vec3) -> Vec3 {
+        self.frame.to_world(v)
+    }
+
+    /// Origin for a ray leaving this point in direction `d`.
+    #[inline]
+    pub fn spawn_origin(&self, d: Vec3) -> Vec3 {
+        super::ray::offset_origin(self.p, self.n, d)
+    }
+}

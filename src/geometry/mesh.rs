@@ -1,0 +1,239 @@
+//! Triangle meshes in world space, and Mitsuba's built-in `rectangle` and
+//! `cube` as meshes.
+//!
+//! Mitsuba's rectangle is the square [-1,1]² in the z=0 plane with normal +z
+//! and uv = (x/2 + ½, y/2 + ½); its cube is [-1,1]³ with outward normals.
+//! After an affine `to_world` a rectangle is a parallelogram, so two
+//! triangles represent it exactly, including uniform area sampling.
+
+use crate::math::Transform;
+use crate::math::sampling::{DiscreteDistribution, square_to_uniform_triangle};
+use glam::{Vec2, Vec3};
+
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    pub positions: Vec<Vec3>,
+    /// Per-vertex shading normals, unit length, already flipped if needed.
+    pub normals: Option<Vec<Vec3>>,
+    pub uvs: Option<Vec<Vec2>>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Negate geometric and shading normals (Mitsuba's `flip_normals`).
+    pub flip_normals: bool,
+    area_distribution: DiscreteDistribution,
+}
+
+/// A point drawn on a shape's surface.
+#[derive(Clone, Copy, Debug)]
+pub struct PositionSample {
+    pub p: Vec3,
+    /// Geometric normal at `p`.
+    pub n: Vec3,
+    /// Shading normal at `p` (decides which side emits).
+    pub sh_n: Vec3,
+    pub uv: Vec2,
+    /// Density with respect to surface area.
+    pub pdf_area: f32,
+}
+
+impl Mesh {
+    /// Builds a mesh from world-space data. Indices must be in range (the
+    /// loaders check this with a located error before calling).
+    pub fn new(
+        positions: Vec<Vec3>,
+        normals: Option<Vec<Vec3>>,
+        uvs: Option<Vec<Vec2>>,
+        triangles: Vec<[u32; 3]>,
+        flip_normals: bool,
+    ) -> Mesh {
+        let mut mesh = Mesh { positions, normals, uvs, triangles, flip_normals, area_distribution: Default::default() };
+        if let Some(ns) = &mut mesh.normals {
+            for n in ns.iter_mut() {
+                *n = n.normalize_or_zero();
+                if flip_normals {
+                    *n = -*n;
+                }
+            }
+        }
+        let areas: Vec<f32> = (0..mesh.triangles.len()).map(|i| mesh.triangle_area(i)).collect();
+        mesh.area_distribution = DiscreteDistribution::new(areas);
+        mesh
+    }
+
+    pub fn vertices(&self, i: usize) -> [Vec3; 3] {
+        let [a, b, c] = self.triangles[i];
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+    }
+
+    pub fn triangle_area(&self, i: usize) -> f32 {
+        let [a, b, c] = self.vertices(i);
+        0.5 * (b - a).cross(c - a).length()
+    }
+
+    pub fn area(&self) -> f32 {
+        self.area_distribution.sum()
+    }
+
+    /// Geometric normal of triangle `i` (orientation from the winding).
+    #[inline]
+    pub fn face_normal(&self, i: usize) -> Vec3 {
+        let [a, b, c] = self.vertices(i);
+        let n = (b - a).cross(c - a).normalize_or_zero();
+        if self.flip_normals { -n } else { n }
+    }
+
+    /// Shading normal and uv at barycentrics (b1, b2) of triangle `i`.
+    #[inline]
+    pub fn shading(&self, i: usize, b1: f32, b2: f32, face_n: Vec3) -> (Vec3, Vec2) {
+        let [ia, ib, ic] = self.triangles[i];
+        let b0 = 1.0 - b1 - b2;
+        let sh_n = match &self.normals {
+            Some(ns) => {
+                let n = (ns[ia as usize] * b0 + ns[ib as usize] * b1 + ns[ic as usize] * b2).normalize_or_zero();
+                if n == Vec3::ZERO { face_n } else { n }
+            }
+            None => face_n,
+        };
+        let uv = match &self.uvs {
+            Some(uvs) => uvs[ia as usize] * b0 + uvs[ib as usize] * b1 + uvs[ic as usize] * b2,
+            None => Vec2::new(b1, b2),
+        };
+        (sh_n, uv)
+    }
+
+    /// Uniform by area over the whole mesh.
+    pub fn sample_position(&self, u: Vec2) -> Option<PositionSample> {
+        if self.area_distribution.is_empty() || self.area() <= 0.0 {
+            return None;
+        }
+        let (i, ux) = self.area_distribution.sample_reuse(u.x);
+        let b = square_to_uniform_triangle(Vec2::new(ux, u.y));
+        let [a, bb, c] = self.vertices(i);
+        let p = a * (1.0 - b.x - b.y) + bb * b.x + c * b.y;
+        let n = self.face_normal(i);
+        let (sh_n, uv) = self.shading(i, b.x, b.y, n);
+        Some(PositionSample { p, n, sh_n, uv, pdf_area: 1.0 / self.area() })
+    }
+
+    /// Mitsuba's `rectangle`.
+    pub fn rectangle(to_world: &Transform, flip_normals: bool) -> Mesh {
+        let local = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0)];
+        let uvs = vec![Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 1.0)];
+        let n = to_world.normal(Vec3::Z);
+        Self::from_local_quads(to_world, &local, uvs, vec![n; 4], &[[0, 1, 2, 3]], flip_normals)
+    }
+
+    /// Mitsuba's `cube`: [-1,1]³, four vertices and one uv square per face.
+    pub fn cube(to_world: &Transform, flip_normals: bool) -> Mesh {
+        let mut positions = vec![];
+        let mut normals = vec![];
+        let mut uvs = vec![];
+        let mut quads = vec![];
+        for axis in 0..3 {
+            for sign in [-1.0f32, 1.0] {
+                let mut n = Vec3::ZERO;
+                n[axis] = sign;
+                // Two tangents with t1 × t2 = n, so the quad winds counter-clockwise seen from outside.
+                let mut t1 = Vec3::ZERO;
+                t1[(axis + 1) % 3] = 1.0;
+                let mut t2 = Vec3::ZERO;
+                t2[(axis + 2) % 3] = 1.0;
+                if sign < 0.0 {
+                    std::mem::swap(&mut t1, &mut t2);
+                }
+                let base = positions.len() as u32;
+                for (du, dv) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                    positions.push(n + t1 * du + t2 * dv);
+                    normals.push(to_world.normal(n));
+                    uvs.push(Vec2::new((du + 1.0) * 0.5, (dv + 1.0) * 0.5));
+                }
+                quads.push([base, base + 1, base + 2, base + 3]);
+            }
+        }
+        Self::from_local_quads(to_world, &positions, uvs, normals, &quads, flip_normals)
+    }
+
+    fn from_local_quads(
+        to_world: &Transform,
+        local: &[Vec3],
+        uvs: Vec<Vec2>,
+        normals: Vec<Vec3>,
+        quads: &[[u32; 4]],
+        flip_normals: bool,
+    ) -> Mesh {
+        let positions: Vec<Vec3> = local.iter().map(|&p| to_world.point(p)).collect();
+        // A mirroring transform reverses the winding; keep the geometric
+        // normal on the side of the transformed normal, as Mitsuba's analytic
+        // shapes do.
+        let mirrored = to_world.matrix.determinant() < 0.0;
+        let mut triangles = vec![];
+        for &[a, b, c, d] in quads {
+            if mirrored {
+                triangles.push([a, c, b]);
+                triangles.push([a, d, c]);
+            } else {
+                triangles.push([a, b, c]);
+                triangles.push([a, c, d]);
+            }
+        }
+        Mesh::new(positions, Some(normals), Some(uvs), triangles, flip_normals)
+    }
+
+    /// Smooth vertex normals weighted by the angle each face makes at the
+    /// vertex (Thürmer & Wüthrich 1998), as Mitsuba computes them for meshes
+    /// that come without normals.
+    pub fn compute_vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+        let mut normals = vec![Vec3::ZERO; positions.len()];
+        for tri in triangles {
+            let p = [positions[tri[0] as usize], positions[tri[1] as usize], positions[tri[2] as usize]];
+            let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+            if n == Vec3::ZERO {
+                continue;
+            }
+            for k in 0..3 {
+                let e1 = (p[(k + 1) % 3] - p[k]).normalize_or_zero();
+                let e2 = (p[(k + 2) % 3] - p[k]).normalize_or_zero();
+                let angle = e1.dot(e2).clamp(-1.0, 1.0).acos();
+                normals[tri[k] as usize] += n * angle;
+            }
+        }
+        for n in &mut normals {
+            *n = n.normalize_or_zero();
+        }
+        normals
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Mat4;
+
+    #[test]
+    fn rectangle_area_and_normal() {
+        let t = Transform::from_matrix(Mat4::from_scale(Vec3::new(2.0, 3.0, 1.0))).unwrap();
+        let m = Mesh::rectangle(&t, false);
+        assert!((m.area() - 24.0).abs() < 1e-4);
+        assert!((m.face_normal(0) - Vec3::Z).length() < 1e-6);
+        let flipped = Mesh::rectangle(&t, true);
+        assert!((flipped.face_normal(1) + Vec3::Z).length() < 1e-6);
+    }
+
+    #[test]
+    fn cube_normals_point_outwards() {
+        let m = Mesh::cube(&Transform::IDENTITY, false);
+        assert_eq!(m.triangles.len(), 12);
+        assert!((m.area() - 24.0).abs() < 1e-4);
+        for i in 0..12 {
+            let [a, b, c] = m.vertices(i);
+            let centre = (a + b + c) / 3.0;
+            assert!(m.face_normal(i).dot(centre) > 0.0, "face {i} points inwards");
+        }
+    }
+
+    #[test]
+    fn mirrored_rectangle_keeps_its_normal() {
+        let t = Transform::from_matrix(Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0))).unwrap();
+        let m = Mesh::rectangle(&t, false);
+        assert!((m.face_normal(0) - Vec3::Z).length() < 1e-6);
+    }
+}

@@ -1,0 +1,111 @@
+//! A shape: geometry plus the material and (optionally) the area emitter
+//! attached to it.
+
+use super::disk::Disk;
+use super::interaction::SurfaceInteraction;
+use super::mesh::Mesh;
+use super::sphere::{DirectionSample, Sphere};
+use crate::math::Frame;
+use glam::{Vec2, Vec3};
+
+#[derive(Clone, Debug)]
+pub enum ShapeGeometry {
+    Mesh(Mesh),
+    Sphere(Sphere),
+    Disk(Disk),
+}
+
+#[derive(Clone, Debug)]
+pub struct Shape {
+    pub geometry: ShapeGeometry,
+    pub bsdf: u32,
+    pub emitter: Option<u32>,
+}
+
+impl Shape {
+    pub fn primitive_count(&self) -> usize {
+        match &self.geometry {
+            ShapeGeometry::Mesh(m) => m.triangles.len(),
+            ShapeGeometry::Sphere(_) | ShapeGeometry::Disk(_) => 1,
+        }
+    }
+
+    pub fn area(&self) -> f32 {
+        match &self.geometry {
+            ShapeGeometry::Mesh(m) => m.area(),
+            ShapeGeometry::Sphere(s) => s.area(),
+            ShapeGeometry::Disk(d) => d.area,
+        }
+    }
+
+    /// The full interaction at a hit found by the accelerator.
+    pub fn interaction(&self, shape_index: u32, prim: u32, ray_o: Vec3, ray_d: Vec3, t: f32) -> SurfaceInteraction {
+        let (p, n, sh_n, uv) = match &self.geometry {
+            ShapeGeometry::Mesh(m) => {
+                let i = prim as usize;
+                let [a, b, c] = m.vertices(i);
+                let e1 = b - a;
+                let e2 = c - a;
+                // Barycentrics again for the one hit that matters (cheaper
+                // than carrying them through traversal).
+                let pvec = ray_d.cross(e2);
+                let inv_det = 1.0 / e1.dot(pvec);
+                let tvec = ray_o - a;
+                let b1 = tvec.dot(pvec) * inv_det;
+                let b2 = ray_d.dot(tvec.cross(e1)) * inv_det;
+                let (b1, b2) = if b1.is_finite() && b2.is_finite() { (b1.clamp(0.0, 1.0), b2.clamp(0.0, 1.0)) } else { (0.0, 0.0) };
+                let p = a + e1 * b1 + e2 * b2;
+                let n = m.face_normal(i);
+                let (sh_n, uv) = m.shading(i, b1, b2, n);
+                (p, n, sh_n, uv)
+            }
+            ShapeGeometry::Sphere(s) => {
+                let p = ray_o + ray_d * t;
+                // Project onto the surface to remove the error of o + t·d.
+                let p = s.center + (p - s.center).normalize_or_zero() * s.radius;
+                let n = s.normal_at(p);
+                (p, n, n, s.uv_at(p))
+            }
+            ShapeGeometry::Disk(d) => {
+                let p = ray_o + ray_d * t;
+                (p, d.normal, d.normal, d.uv_at(p))
+            }
+        };
+        let frame = Frame::from_normal(sh_n);
+        SurfaceInteraction { p, t, n, frame, uv, shape: shape_index, wi: frame.to_local(-ray_d) }
+    }
+
+    /// A direction from `p` towards this shape, for emitter sampling.
+    pub fn sample_direction(&self, p: Vec3, u: Vec2) -> Option<DirectionSample> {
+        let ps = match &self.geometry {
+            ShapeGeometry::Sphere(s) => return s.sample_direction(p, u),
+            ShapeGeometry::Mesh(m) => m.sample_position(u)?,
+            ShapeGeometry::Disk(d) => d.sample_position(u),
+        };
+        let v = ps.p - p;
+        let dist2 = v.length_squared();
+        let dist = dist2.sqrt();
+        if dist <= 0.0 || !dist.is_finite() {
+            return None;
+        }
+        let d = v / dist;
+        let cos = ps.n.dot(d).abs();
+        if cos <= 1e-7 {
+            return None;
+        }
+        Some(DirectionSample { p: ps.p, n: ps.n, sh_n: ps.sh_n, uv: ps.uv, d, dist, pdf: ps.pdf_area * dist2 / cos })
+    }
+
+    /// Solid-angle density of `sample_direction` from `p` for the point
+    /// `hit` on this shape with geometric normal `n`.
+    pub fn pdf_direction(&self, p: Vec3, hit: Vec3, n: Vec3) -> f32 {
+        if let ShapeGeometry::Sphere(s) = &self.geometry {
+            return s.pdf_direction(p, hit, n);
+        }
+        let v = hit - p;
+        let dist2 = v.length_squared();
+        let cos = n.dot(v).abs() / dist2.sqrt();
+        let area = self.area();
+        if cos <= 1e-7 || area <= 0.0 { 0.0 } else { dist2 / (cos * area) }
+    }
+}

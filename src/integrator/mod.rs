@@ -1,0 +1,31 @@
+//! Integrators: estimate the radiance arriving along a camera ray.
+//!
+//! Both are generic over the path's [`Spectrum`] type and follow Mitsuba 3's
+//! definitions, so the same XML gives the same expected image.
+
+pub mod direct;
+pub mod path;
+
+pub use direct::Direct;
+pub use path::PathTracer;
+
+use crate::geometry::Ray;
+use crate::sampler::Sampler;
+use crate::scene::Scene;
+use crate::spectrum::Spectrum;
+
+#[derive(Clone, Debug)]
+pub enum Integrator {
+    Direct(Direct),
+    Path(PathTracer),
+}
+
+impl Integrator {
+    #[inline]
+    pub fn li<S: Spectrum>(&self, scene: &Scene, ray: Ray, sampler: &mut Sampler, wl: &S::Wavelengths) -> S {
+        match self {
+            Integrator::Direct(d) => d.li(scene, ray, sampler, wl),
+            Integrator::Path(p) => p.li(scene, ray, sampler, wl),
+        }
+    }
+}

@@ -1,0 +1,107 @@
+//! `path` — unidirectional path tracing with next-event estimation.
+//!
+//! At every vertex with a smooth (non-delta) BSDF an emitter is sampled
+//! (the direct-lighting estimator of `direct`), and the path continues by
+//! BSDF sampling; emitters the path hits on its own are weighted against
+//! emitter sampling by the power heuristic, or counted in full after a delta
+//! lobe (where emitter sampling cannot reach them). So every light path is
+//! counted once and only once. Russian roulette as in Mitsuba: from depth
+//! `rr_depth` on, continue with probability min(max(throughput)·η², 0.95).
+//!
+//! | parameter | type | default | meaning |
+//! |---|---|---|---|
+//! | `max_depth` | integer | -1 | longest path in segments; -1 = unlimited, 1 = emitters only, 2 = direct light |
+//! | `rr_depth` | integer | 5 | depth at which Russian roulette starts |
+//! | `hide_emitters` | boolean | false | hide directly visible emitters |
+//!
+//! ```xml
+//! <integrator type="path"><integer name="max_depth" value="8"/></integrator>
+//! ```
+
+use crate::bsdf::Lobe;
+use crate::geometry::Ray;
+use crate::math::mis_power;
+use crate::sampler::Sampler;
+use crate::scene::Scene;
+use crate::spectrum::Spectrum;
+
+#[derive(Clone, Debug)]
+pub struct PathTracer {
+    /// `u32::MAX` for unlimited.
+    pub max_depth: u32,
+    pub rr_depth: u32,
+    pub hide_emitters: bool,
+}
+
+impl PathTracer {
+    pub fn li<S: Spectrum>(&self, scene: &Scene, mut ray: Ray, sampler: &mut Sampler, wl: &S::Wavelengths) -> S {
+        let mut result = S::zero();
+        let mut throughput = S::splat(1.0);
+        let mut eta = 1.0f32;
+        let mut depth = 0u32;
+        // The previous vertex, for MIS of emitters hit by BSDF sampling.
+        let mut prev_p = ray.o;
+        let mut prev_pdf = 0.0f32;
+        let mut prev_delta = true;
+
+        loop {
+            let hit = scene.intersect(&ray);
+            let visible = !(self.hide_emitters && depth == 0);
+            let Some(si) = hit else {
+                if visible {
+                    if let Some(env) = scene.environment_radiance() {
+                        let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_environment()) };
+                        result += throughput * S::from_illuminant(env, wl) * w;
+                    }
+                }
+                break;
+            };
+            if visible {
+                if let Some(le) = scene.emitted(&si) {
+                    let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_emitter_hit(prev_p, &si)) };
+                    result += throughput * S::from_illuminant(le, wl) * w;
+                }
+            }
+            if depth.saturating_add(1) >= self.max_depth {
+                break;
+            }
+            let bsdf = scene.bsdf(&si);
+
+            // Next-event estimation.
+            if bsdf.lobes().intersects(Lobe::SMOOTH) {
+                if let Some(es) = scene.sample_emitter::<S>(&si, sampler.next_2d(), wl) {
+                    let wo = si.to_local(es.d);
+                    let f: S = bsdf.eval(&si, si.wi, wo, wl);
+                    if !f.is_zero() {
+                        let w = if es.delta { 1.0 } else { mis_power(es.pdf, bsdf.pdf(&si, si.wi, wo)) };
+                        result += throughput * f * es.weight * w;
+                    }
+                }
+            }
+
+            // Continue the path by sampling the BSDF.
+            let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
+            let d = si.to_world(bs.wo);
+            throughput *= bs.weight;
+            eta *= bs.eta;
+            prev_p = si.p;
+            prev_pdf = bs.pdf;
+            prev_delta = bs.lobe.intersects(Lobe::DELTA);
+            ray = Ray::new(si.spawn_origin(d), d);
+            depth += 1;
+
+            let t_max = throughput.max_component();
+            if depth >= self.rr_depth {
+                let q = (t_max * eta * eta).min(0.95);
+                if !(sampler.next_1d() < q) {
+                    break;
+                }
+                throughput *= 1.0 / q;
+            }
+            if !(t_max > 0.0) {
+                break;
+            }
+        }
+        result
+    }
+}

@@ -1,0 +1,169 @@
+//! Warps from the unit square to the domains the renderer samples, each with
+//! its density. The chi² tests of the BSDFs rely on these pdfs being exact.
+
+use super::{INV_FOUR_PI, INV_PI, PI};
+use glam::{Vec2, Vec3};
+
+/// Shirley–Chiu concentric map to the unit disk (area-preserving, low distortion).
+#[inline]
+pub fn square_to_uniform_disk_concentric(u: Vec2) -> Vec2 {
+    let x = 2.0 * u.x - 1.0;
+    let y = 2.0 * u.y - 1.0;
+    if x == 0.0 && y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, phi) = if x.abs() > y.abs() {
+        (x, (PI / 4.0) * (y / x))
+    } else {
+        (y, (PI / 2.0) - (PI / 4.0) * (x / y))
+    };
+    let (s, c) = phi.sin_cos();
+    Vec2::new(r * c, r * s)
+}
+
+/// Cosine-weighted hemisphere around +z (Malley's method); pdf = cosθ/π.
+#[inline]
+pub fn square_to_cosine_hemisphere(u: Vec2) -> Vec3 {
+    let d = square_to_uniform_disk_concentric(u);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    Vec3::new(d.x, d.y, z)
+}
+
+#[inline]
+pub fn cosine_hemisphere_pdf(v: Vec3) -> f32 {
+    if v.z > 0.0 { v.z * INV_PI } else { 0.0 }
+}
+
+#[inline]
+pub fn square_to_uniform_sphere(u: Vec2) -> Vec3 {
+    let z = 1.0 - 2.0 * u.y;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let (s, c) = (2.0 * PI * u.x).sin_cos();
+    Vec3::new(r * c, r * s, z)
+}
+
+#[inline]
+pub fn uniform_sphere_pdf() -> f32 {
+    INV_FOUR_PI
+}
+
+/// Uniform direction inside the cone of half-angle acos(cos_max) around +z.
+#[inline]
+pub fn square_to_uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
+    let cos_t = (1.0 - u.y) + u.y * cos_max;
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let (s, c) = (2.0 * PI * u.x).sin_cos();
+    Vec3::new(c * sin_t, s * sin_t, cos_t)
+}
+
+#[inline]
+pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
+    1.0 / (2.0 * PI * (1.0 - cos_max))
+}
+
+/// Uniform barycentrics (b1, b2) on a triangle (Heitz 2019 low-distortion map).
+#[inline]
+pub fn square_to_uniform_triangle(u: Vec2) -> Vec2 {
+    if u.y > u.x {
+        let b0 = u.x * 0.5;
+        let b1 = u.y - b0;
+        Vec2::new(b0, b1)
+    } else {
+        let b1 = u.y * 0.5;
+        let b0 = u.x - b1;
+        Vec2::new(b0, b1)
+    }
+}
+
+/// A discrete distribution over non-negative weights, sampled by its CDF.
+#[derive(Clone, Debug, Default)]
+pub struct DiscreteDistribution {
+    cdf: Vec<f32>,
+    sum: f32,
+}
+
+impl DiscreteDistribution {
+    pub fn new(weights: impl IntoIterator<Item = f32>) -> Self {
+        let mut cdf = Vec::new();
+        let mut acc = 0.0f64;
+        for w in weights {
+            acc += w.max(0.0) as f64;
+            cdf.push(acc as f32);
+        }
+        let sum = acc as f32;
+        if sum > 0.0 {
+            for c in &mut cdf {
+                *c /= sum;
+            }
+        }
+        DiscreteDistribution { cdf, sum }
+    }
+
+    pub fn sum(&self) -> f32 {
+        self.sum
+    }
+
+    pub fn len(&self) -> usize {
+        self.cdf.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.cdf.is_empty()
+    }
+
+    pub fn pmf(&self, i: usize) -> f32 {
+        let lo = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        self.cdf[i] - lo
+    }
+
+    /// Returns the index and the sample re-scaled to [0,1) within that bin.
+    #[inline]
+    pub fn sample_reuse(&self, u: f32) -> (usize, f32) {
+        let n = self.cdf.len();
+        let i = self.cdf.partition_point(|&c| c <= u).min(n - 1);
+        let lo = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        let w = self.cdf[i] - lo;
+        let r = if w > 0.0 { ((u - lo) / w).clamp(0.0, 1.0 - f32::EPSILON / 2.0) } else { 0.0 };
+        (i, r)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Pcg32;
+
+    #[test]
+    fn concentric_disk_stays_inside() {
+        let mut r = Pcg32::new(3, 0);
+        for _ in 0..10000 {
+            let p = square_to_uniform_disk_concentric(Vec2::new(r.next_f32(), r.next_f32()));
+            assert!(p.length() <= 1.0 + 1e-5);
+        }
+    }
+
+    #[test]
+    fn triangle_barycentrics_are_uniform() {
+        // The mean of uniform barycentrics over a triangle is (1/3, 1/3).
+        let mut r = Pcg32::new(5, 0);
+        let n = 100_000;
+        let mut m = Vec2::ZERO;
+        for _ in 0..n {
+            let b = square_to_uniform_triangle(Vec2::new(r.next_f32(), r.next_f32()));
+            assert!(b.x >= 0.0 && b.y >= 0.0 && b.x + b.y <= 1.0 + 1e-6);
+            m += b;
+        }
+        m /= n as f32;
+        assert!((m.x - 1.0 / 3.0).abs() < 0.005 && (m.y - 1.0 / 3.0).abs() < 0.005);
+    }
+
+    #[test]
+    fn discrete_distribution_matches_weights() {
+        let d = DiscreteDistribution::new([1.0, 0.0, 3.0]);
+        assert!((d.pmf(0) - 0.25).abs() < 1e-6 && d.pmf(1) == 0.0 && (d.pmf(2) - 0.75).abs() < 1e-6);
+        assert_eq!(d.sample_reuse(0.1).0, 0);
+        assert_eq!(d.sample_reuse(0.3).0, 2);
+        let (_, r) = d.sample_reuse(0.625);
+        assert!((r - 0.5).abs() < 1e-5);
+    }
+}

@@ -1,0 +1,113 @@
+//! Scene errors that say where: file, line and column, the offending line
+//! with a caret under the column, and (where it helps) the valid choices.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// A loaded source file, kept so that errors can quote the offending line.
+#[derive(Debug)]
+pub struct SourceFile {
+    pub path: PathBuf,
+    pub text: String,
+}
+
+#[derive(Clone, Debug)]
+pub struct Location {
+    pub file: Arc<SourceFile>,
+    /// 1-based line and column (column in characters).
+    pub line: u32,
+    pub col: u32,
+}
+
+impl Location {
+    pub fn new(file: &Arc<SourceFile>, line: u32, col: u32) -> Location {
+        Location { file: file.clone(), line, col }
+    }
+
+    /// The location of a byte offset in the file.
+    pub fn at_byte(file: &Arc<SourceFile>, byte: usize) -> Location {
+        let text = &file.text[..byte.min(file.text.len())];
+        let line = text.matches('\n').count() as u32 + 1;
+        let line_start = text.rfind('\n').map_or(0, |i| i + 1);
+        let col = text[line_start..].chars().count() as u32 + 1;
+        Location::new(file, line, col)
+    }
+
+    pub fn source_line(&self) -> &str {
+        self.file.text.lines().nth(self.line.saturating_sub(1) as usize).unwrap_or("")
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct SceneError {
+    pub message: String,
+    pub location: Option<Location>,
+    /// A path for errors about a file that could not be read at all.
+    pub path: Option<PathBuf>,
+    pub help: Option<String>,
+}
+
+pub type Result<T, E = SceneError> = std::result::Result<T, E>;
+
+impl SceneError {
+    pub fn at(location: &Location, message: impl Into<String>) -> SceneError {
+        SceneError { message: message.into(), location: Some(location.clone()), path: None, help: None }
+    }
+
+    pub fn file(path: &Path, message: impl Into<String>) -> SceneError {
+        SceneError { message: message.into(), location: None, path: Some(path.to_path_buf()), help: None }
+    }
+
+    pub fn with_help(mut self, help: impl Into<String>) -> SceneError {
+        self.help = Some(help.into());
+        self
+    }
+
+    /// "valid choices are: a, b, c" as help text.
+    pub fn with_choices(self, choices: &[&str]) -> SceneError {
+        self.with_help(format!("valid choices are: {}", choices.join(", ")))
+    }
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "error: {}", self.message)?;
+        if let Some(loc) = &self.location {
+            let gutter = loc.line.to_string().len();
+            let pad = " ".repeat(gutter);
+            writeln!(f, "{pad}--> {}:{}:{}", loc.file.path.display(), loc.line, loc.col)?;
+            writeln!(f, "{pad} |")?;
+            let line = loc.source_line().replace('\t', " ");
+            writeln!(f, "{} | {}", loc.line, line)?;
+            let caret_pad = " ".repeat(loc.col.saturating_sub(1) as usize);
+            write!(f, "{pad} | {caret_pad}^")?;
+        } else if let Some(p) = &self.path {
+            write!(f, "  --> {}", p.display())?;
+        }
+        if let Some(help) = &self.help {
+            write!(f, "\n  = help: {help}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn display_quotes_the_line_with_a_caret() {
+        let file = Arc::new(SourceFile { path: "a.xml".into(), text: "<scene>\n  <bsdf type=\"x\"/>\n".into() });
+        let loc = Location::at_byte(&file, file.text.find("<bsdf").unwrap());
+        assert_eq!((loc.line, loc.col), (2, 3));
+        let e = SceneError::at(&loc, "unknown bsdf \"x\"").with_choices(&["diffuse"]);
+        let s = e.to_string();
+        assert!(s.contains("a.xml:2:3"), "{s}");
+        assert!(s.contains("2 |   <bsdf type=\"x\"/>"), "{s}");
+        assert!(s.contains("  |   ^"), "{s}");
+        assert!(s.contains("valid choices are: diffuse"), "{s}");
+    }
+}

@@ -1,0 +1,181 @@
+//! Scene loading and the loaded scene.
+//!
+//! Loading runs in three stages, as in Mitsuba: [`xml`] parses the file into
+//! nodes with typed, located properties (defaults, `$name` substitution and
+//! includes resolved); [`loader`] resolves references and instantiates each
+//! plugin through one factory per kind; the result is a [`Scene`] with its
+//! acceleration structure built.
+
+pub mod error;
+pub mod loader;
+pub mod props;
+pub mod xml;
+
+pub use error::{Location, SceneError};
+pub use loader::{LoadOptions, load_file, load_str};
+
+use crate::bsdf::Bsdf;
+use crate::emitter::{Emitter, EmitterSample};
+use crate::film::FilmSpec;
+use crate::geometry::accel::Accel;
+use crate::geometry::ray::offset_origin;
+use crate::geometry::{Ray, Shape, SurfaceInteraction};
+use crate::integrator::Integrator;
+use crate::math::sampling::square_to_uniform_sphere;
+use crate::math::{INV_FOUR_PI, SHADOW_EPSILON};
+use crate::sampler::SamplerSpec;
+use crate::sensor::Camera;
+use crate::spectrum::{Rgb, Spectrum};
+use glam::{Vec2, Vec3};
+
+pub struct Scene {
+    pub shapes: Vec<Shape>,
+    pub bsdfs: Vec<Bsdf>,
+    pub emitters: Vec<Emitter>,
+    pub accel: Accel,
+    pub camera: Camera,
+    pub film: FilmSpec,
+    pub sampler: SamplerSpec,
+    pub integrator: Integrator,
+    /// The environment emitter, if any (seen by rays that leave the scene).
+    pub environment: Option<u32>,
+}
+
+impl Scene {
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
+        let hit = self.accel.intersect(ray)?;
+        Some(self.shapes[hit.shape as usize].interaction(hit.shape, hit.prim, ray.o, ray.d, hit.t))
+    }
+
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.accel.occluded(ray)
+    }
+
+    #[inline]
+    pub fn bsdf(&self, si: &SurfaceInteraction) -> &Bsdf {
+        &self.bsdfs[self.shapes[si.shape as usize].bsdf as usize]
+    }
+
+    /// Emitted radiance from the surface at `si` back along the ray.
+    #[inline]
+    pub fn emitted(&self, si: &SurfaceInteraction) -> Option<Rgb> {
+        let e = self.shapes[si.shape as usize].emitter?;
+        match &self.emitters[e as usize] {
+            Emitter::Area(a) => Some(a.eval(si.frame.n, si.frame.to_world(si.wi))),
+            _ => None,
+        }
+    }
+
+    /// Radiance arriving from the environment along direction `d` (a ray that escaped).
+    #[inline]
+    pub fn environment_radiance(&self) -> Option<Rgb> {
+        match &self.emitters[self.environment? as usize] {
+            Emitter::Constant(c) => Some(c.radiance),
+            _ => None,
+        }
+    }
+
+    #[inline]
+    fn selection_pmf(&self) -> f32 {
+        1.0 / self.emitters.len() as f32
+    }
+
+    /// Solid-angle density with which emitter sampling from `p` would pick
+    /// the area-light point `hit` (selection included).
+    pub fn pdf_emitter_hit(&self, p: Vec3, hit: &SurfaceInteraction) -> f32 {
+        let shape = &self.shapes[hit.shape as usize];
+        if shape.emitter.is_none() {
+            return 0.0;
+        }
+        shape.pdf_direction(p, hit.p, hit.n) * self.selection_pmf()
+    }
+
+    /// Density of sampling the environment in any direction (selection included).
+    pub fn pdf_environment(&self) -> f32 {
+        if self.environment.is_some() { INV_FOUR_PI * self.selection_pmf() } else { 0.0 }
+    }
+
+    /// Picks an emitter uniformly, then a direction towards it, and tests
+    /// visibility with a shadow ray. `None` if nothing arrives.
+    pub fn sample_emitter<S: Spectrum>(&self, si: &SurfaceInteraction, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
+        let n = self.emitters.len();
+        if n == 0 {
+            return None;
+        }
+        let scaled = u.x * n as f32;
+        let index = (scaled as usize).min(n - 1);
+        let u = Vec2::new((scaled - index as f32).min(1.0 - f32::EPSILON), u.y);
+        let pmf = self.selection_pmf();
+        let sample = match &self.emitters[index] {
+            Emitter::Area(a) => {
+                let ds = self.shapes[a.shape as usize].sample_direction(si.p, u)?;
+                // Only the front side emits.
+                let radiance = a.eval(ds.sh_n, -ds.d);
+                if ds.pdf <= 0.0 || !ds.pdf.is_finite() || radiance.is_zero() {
+                    return None;
+                }
+                let pdf = ds.pdf * pmf;
+                EmitterSample {
+                    d: ds.d,
+                    dist: ds.dist,
+                    p: Some(ds.p),
+                    n: ds.n,
+                    weight: S::from_illuminant(radiance, wl) / pdf,
+                    pdf,
+                    delta: false,
+                }
+            }
+            Emitter::Point(pl) => {
+                let v = pl.position - si.p;
+                let dist2 = v.length_squared();
+                if dist2 <= 0.0 {
+                    return None;
+                }
+                let dist = dist2.sqrt();
+                EmitterSample {
+                    d: v / dist,
+                    dist,
+                    p: Some(pl.position),
+                    n: Vec3::ZERO,
+                    weight: S::from_illuminant(pl.intensity, wl) / (dist2 * pmf),
+                    pdf: 0.0,
+                    delta: true,
+                }
+            }
+            Emitter::Directional(dl) => EmitterSample {
+                d: -dl.direction,
+                dist: f32::INFINITY,
+                p: None,
+                n: Vec3::ZERO,
+                weight: S::from_illuminant(dl.irradiance, wl) / pmf,
+                pdf: 0.0,
+                delta: true,
+            },
+            Emitter::Constant(c) => {
+                let d = square_to_uniform_sphere(u);
+                let pdf = INV_FOUR_PI * pmf;
+                EmitterSample { d, dist: f32::INFINITY, p: None, n: Vec3::ZERO, weight: S::from_illuminant(c.radiance, wl) / pdf, pdf, delta: false }
+            }
+        };
+        // Shadow ray, stopping just short of the emitter's surface.
+        let o = si.spawn_origin(sample.d);
+        let ray = match sample.p {
+            Some(target) => {
+                let target = if sample.n != Vec3::ZERO { offset_origin(target, sample.n, -sample.d) } else { target };
+                let v = target - o;
+                let dist = v.length();
+                if dist <= 0.0 {
+                    return None;
+                }
+                Ray { o, d: v / dist, tmax: dist * (1.0 - SHADOW_EPSILON) }
+            }
+            None => Ray { o, d: sample.d, tmax: f32::INFINITY },
+        };
+        if self.occluded(&ray) {
+            return None;
+        }
+        Some(sample)
+    }
+}

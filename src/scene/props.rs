@@ -1,0 +1,245 @@
+//! Typed access to a node's properties. Every getter marks what it read; a
+//! property or nested object nobody read is an error (Mitsuba: "unreferenced
+//! property"), so a misspelt parameter never silently falls back to a default.
+
+use super::error::{Result, SceneError};
+use super::xml::{Child, Kind, Node, Value};
+use crate::math::Transform;
+use crate::spectrum::Rgb;
+use glam::Vec3;
+use std::cell::Cell;
+
+pub struct Props<'a> {
+    pub node: &'a Node,
+    used: Vec<Cell<bool>>,
+    child_used: Vec<Cell<bool>>,
+}
+
+impl<'a> Props<'a> {
+    pub fn new(node: &'a Node) -> Props<'a> {
+        Props {
+            node,
+            used: node.props.iter().map(|_| Cell::new(false)).collect(),
+            child_used: node.children.iter().map(|_| Cell::new(false)).collect(),
+        }
+    }
+
+    fn find(&self, name: &str) -> Option<(usize, &'a Value)> {
+        let i = self.node.props.iter().position(|p| p.name == name)?;
+        self.used[i].set(true);
+        Some((i, &self.node.props[i].value))
+    }
+
+    pub fn has(&self, name: &str) -> bool {
+        self.node.props.iter().any(|p| p.name == name)
+    }
+
+    fn type_error(&self, i: usize, expected: &str) -> SceneError {
+        let p = &self.node.props[i];
+        SceneError::at(
+            &p.loc,
+            format!(
+                "property \"{}\" of {} \"{}\" has type {}, expected {expected}",
+                p.name,
+                self.node.kind.tag(),
+                self.node.plugin,
+                p.value.type_name()
+            ),
+        )
+    }
+
+    fn range_error(&self, i: usize, what: &str) -> SceneError {
+        let p = &self.node.props[i];
+        SceneError::at(&p.loc, format!("property \"{}\" must be {what}", p.name))
+    }
+
+    fn missing(&self, name: &str, ty: &str) -> SceneError {
+        SceneError::at(
+            &self.node.loc,
+            format!("{} \"{}\" needs the {ty} property \"{name}\"", self.node.kind.tag(), self.node.plugin),
+        )
+    }
+
+    pub fn float_opt(&self, name: &str) -> Result<Option<f32>> {
+        match self.find(name) {
+            None => Ok(None),
+            Some((_, Value::Float(f))) => Ok(Some(*f as f32)),
+            Some((_, Value::Integer(v))) => Ok(Some(*v as f32)),
+            Some((i, _)) => Err(self.type_error(i, "float")),
+        }
+    }
+
+    pub fn float(&self, name: &str, default: f32) -> Result<f32> {
+        Ok(self.float_opt(name)?.unwrap_or(default))
+    }
+
+    pub fn float_req(&self, name: &str) -> Result<f32> {
+        self.float_opt(name)?.ok_or_else(|| self.missing(name, "float"))
+    }
+
+    /// A float with a check (e.g. positivity) reported at the property.
+    pub fn float_checked(&self, name: &str, default: f32, ok: impl Fn(f32) -> bool, what: &str) -> Result<f32> {
+        let v = self.float(name, default)?;
+        if !ok(v) {
+            return Err(match self.node.props.iter().position(|p| p.name == name) {
+                Some(i) => self.range_error(i, what),
+                None => self.missing(name, "float"),
+            });
+        }
+        Ok(v)
+    }
+
+    pub fn int(&self, name: &str, default: i64) -> Result<i64> {
+        match self.find(name) {
+            None => Ok(default),
+            Some((_, Value::Integer(v))) => Ok(*v),
+            Some((i, _)) => Err(self.type_error(i, "integer")),
+        }
+    }
+
+    pub fn int_checked(&self, name: &str, default: i64, ok: impl Fn(i64) -> bool, what: &str) -> Result<i64> {
+        let v = self.int(name, default)?;
+        if !ok(v) {
+            return Err(match self.node.props.iter().position(|p| p.name == name) {
+                Some(i) => self.range_error(i, what),
+                None => self.missing(name, "integer"),
+            });
+        }
+        Ok(v)
+    }
+
+    pub fn bool(&self, name: &str, default: bool) -> Result<bool> {
+        match self.find(name) {
+            None => Ok(default),
+            Some((_, Value::Boolean(b))) => Ok(*b),
+            Some((i, _)) => Err(self.type_error(i, "boolean")),
+        }
+    }
+
+    pub fn string_opt(&self, name: &str) -> Result<Option<&'a str>> {
+        match self.find(name) {
+            None => Ok(None),
+            Some((_, Value::String(s))) => Ok(Some(s.as_str())),
+            Some((i, _)) => Err(self.type_error(i, "string")),
+        }
+    }
+
+    pub fn string_req(&self, name: &str) -> Result<&'a str> {
+        self.string_opt(name)?.ok_or_else(|| self.missing(name, "string"))
+    }
+
+    /// A string that must be one of `choices`.
+    pub fn choice(&self, name: &str, default: &'a str, choices: &[&str]) -> Result<&'a str> {
+        let v = self.string_opt(name)?.unwrap_or(default);
+        if !choices.contains(&v) {
+            let loc = self.node.props.iter().find(|p| p.name == name).map_or(&self.node.loc, |p| &p.loc);
+            return Err(SceneError::at(loc, format!("\"{v}\" is not a valid value of \"{name}\"")).with_choices(choices));
+        }
+        Ok(v)
+    }
+
+    /// A point or vector (Mitsuba accepts either where a 3-vector is meant).
+    pub fn vec3_opt(&self, name: &str) -> Result<Option<Vec3>> {
+        match self.find(name) {
+            None => Ok(None),
+            Some((_, Value::Point(p) | Value::Vector(p))) => Ok(Some(*p)),
+            Some((i, _)) => Err(self.type_error(i, "point or vector")),
+        }
+    }
+
+    pub fn vec3(&self, name: &str, default: Vec3) -> Result<Vec3> {
+        Ok(self.vec3_opt(name)?.unwrap_or(default))
+    }
+
+    pub fn transform(&self, name: &str) -> Result<Transform> {
+        match self.find(name) {
+            None => Ok(Transform::IDENTITY),
+            Some((_, Value::Transform(t))) => Ok(*t),
+            Some((i, _)) => Err(self.type_error(i, "transform")),
+        }
+    }
+
+    /// A colour given as `rgb`, a constant `spectrum` or a `float`.
+    /// `Ok(None)` when absent; an error for other types.
+    pub fn color_opt(&self, name: &str) -> Result<Option<Rgb>> {
+        match self.find(name) {
+            None => Ok(None),
+            Some((_, Value::Rgb(c))) => Ok(Some(Rgb(*c))),
+            Some((_, Value::Spectrum(s))) => Ok(Some(Rgb([*s; 3]))),
+            Some((_, Value::Float(f))) => Ok(Some(Rgb([*f as f32; 3]))),
+            Some((_, Value::Integer(v))) => Ok(Some(Rgb([*v as f32; 3]))),
+            Some((i, _)) => Err(self.type_error(i, "rgb, spectrum or float")),
+        }
+    }
+
+    pub fn color(&self, name: &str, default: Rgb) -> Result<Rgb> {
+        Ok(self.color_opt(name)?.unwrap_or(default))
+    }
+
+    /// Marks the nested objects of `kind` as used and returns them, in document order.
+    pub fn children_of(&self, kind: Kind) -> Vec<&'a Child> {
+        let mut out = vec![];
+        for (i, c) in self.node.children.iter().enumerate() {
+            if c.kind_hint() == Some(kind) {
+                self.child_used[i].set(true);
+                out.push(c);
+            }
+        }
+        out
+    }
+
+    /// A nested object by its `name` attribute (inline or `<ref name=…>`).
+    pub fn child_named(&self, name: &str) -> Option<&'a Child> {
+        let i = self.node.children.iter().position(|c| c.name.as_deref() == Some(name))?;
+        self.child_used[i].set(true);
+        Some(&self.node.children[i])
+    }
+
+    /// References (`<ref id>`) without a name: their kind is known only after
+    /// resolution, so the loader hands them out through this.
+    pub fn unnamed_refs(&self) -> Vec<&'a Child> {
+        let mut out = vec![];
+        for (i, c) in self.node.children.iter().enumerate() {
+            if c.kind_hint().is_none() && c.name.is_none() {
+                self.child_used[i].set(true);
+                out.push(c);
+            }
+        }
+        out
+    }
+
+    /// Errors on the first property or nested object nobody read.
+    pub fn finish(&self) -> Result<()> {
+        for (i, p) in self.node.props.iter().enumerate() {
+            if !self.used[i].get() {
+                return Err(SceneError::at(
+                    &p.loc,
+                    format!("unused parameter \"{}\": {} \"{}\" does not take it", p.name, self.node.kind.tag(), self.node.plugin),
+                ));
+            }
+        }
+        for (i, c) in self.node.children.iter().enumerate() {
+            if !self.child_used[i].get() {
+                let what = match c.kind_hint() {
+                    Some(k) => format!("<{}>", k.tag()),
+                    None => "reference".to_string(),
+                };
+                return Err(SceneError::at(
+                    &c.loc,
+                    format!("unexpected nested {what}: {} \"{}\" does not take it here", self.node.kind.tag(), self.node.plugin),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Child {
+    /// The kind of an inline child; `None` for a reference.
+    pub fn kind_hint(&self) -> Option<Kind> {
+        match &self.target {
+            super::xml::ChildTarget::Inline(n) => Some(n.kind),
+            super::xml::ChildTarget::Ref(_) => None,
+        }
+    }
+}

@@ -1,0 +1,529 @@
+//! Stage 1 of scene loading: Mitsuba 3 XML text → a tree of [`Node`]s with
+//! typed, located properties. `<default>` parameters and `$name` substitution,
+//! `<include>` and transforms are resolved here; references (`<ref id>`) are
+//! kept by name and resolved by the loader.
+
+use super::error::{Location, Result, SceneError, SourceFile};
+use crate::math::Transform;
+use glam::{Mat4, Vec3, Vec4};
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Arc;
+
+/// The kinds of scene object, named as Mitsuba's XML tags.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Kind {
+    Scene,
+    Shape,
+    Bsdf,
+    Texture,
+    Emitter,
+    Sensor,
+    Film,
+    Sampler,
+    Integrator,
+    Rfilter,
+}
+
+impl Kind {
+    pub const ALL: [Kind; 10] = [
+        Kind::Scene,
+        Kind::Shape,
+        Kind::Bsdf,
+        Kind::Texture,
+        Kind::Emitter,
+        Kind::Sensor,
+        Kind::Film,
+        Kind::Sampler,
+        Kind::Integrator,
+        Kind::Rfilter,
+    ];
+
+    pub fn tag(self) -> &'static str {
+        match self {
+            Kind::Scene => "scene",
+            Kind::Shape => "shape",
+            Kind::Bsdf => "bsdf",
+            Kind::Texture => "texture",
+            Kind::Emitter => "emitter",
+            Kind::Sensor => "sensor",
+            Kind::Film => "film",
+            Kind::Sampler => "sampler",
+            Kind::Integrator => "integrator",
+            Kind::Rfilter => "rfilter",
+        }
+    }
+
+    fn from_tag(tag: &str) -> Option<Kind> {
+        Kind::ALL.into_iter().find(|k| k.tag() == tag)
+    }
+}
+
+#[derive(Clone, Debug)]
+pub enum Value {
+    Integer(i64),
+    Float(f64),
+    Boolean(bool),
+    String(String),
+    Rgb([f32; 3]),
+    /// A `<spectrum>` with one constant value.
+    Spectrum(f32),
+    Point(Vec3),
+    Vector(Vec3),
+    Transform(Transform),
+}
+
+impl Value {
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Value::Integer(_) => "integer",
+            Value::Float(_) => "float",
+            Value::Boolean(_) => "boolean",
+            Value::String(_) => "string",
+            Value::Rgb(_) => "rgb",
+            Value::Spectrum(_) => "spectrum",
+            Value::Point(_) => "point",
+            Value::Vector(_) => "vector",
+            Value::Transform(_) => "transform",
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct Prop {
+    pub name: String,
+    pub value: Value,
+    pub loc: Location,
+}
+
+/// A nested object: written inline, or a `<ref id="..."/>` to one declared elsewhere.
+#[derive(Clone, Debug)]
+pub enum ChildTarget {
+    Inline(Arc<Node>),
+    Ref(String),
+}
+
+#[derive(Clone, Debug)]
+pub struct Child {
+    pub name: Option<String>,
+    pub target: ChildTarget,
+    pub loc: Location,
+}
+
+#[derive(Clone, Debug)]
+pub struct Node {
+    pub kind: Kind,
+    /// The plugin name (`type` attribute); empty for `<scene>`.
+    pub plugin: String,
+    pub id: Option<String>,
+    pub loc: Location,
+    pub props: Vec<Prop>,
+    pub children: Vec<Child>,
+}
+
+/// Reads a scene file. `params` are the `-D name=value` overrides; a
+/// `<default>` only sets a parameter that is not given there.
+pub fn parse_file(path: &Path, params: &HashMap<String, String>) -> Result<Node> {
+    let mut parser = Parser { params: params.clone(), include_depth: 0 };
+    let root = parser.parse_root(path)?;
+    Ok(root)
+}
+
+/// Parses scene text as if it were read from `path` (used by tests and the API).
+pub fn parse_str(path: &Path, text: &str, params: &HashMap<String, String>) -> Result<Node> {
+    let mut parser = Parser { params: params.clone(), include_depth: 0 };
+    let file = Arc::new(SourceFile { path: path.to_path_buf(), text: text.to_string() });
+    parser.parse_document(file)
+}
+
+struct Parser {
+    params: HashMap<String, String>,
+    include_depth: u32,
+}
+
+type XNode<'a, 'i> = roxmltree::Node<'a, 'i>;
+
+fn loc_of(file: &Arc<SourceFile>, node: &XNode) -> Location {
+    Location::at_byte(file, node.range().start)
+}
+
+fn attr_loc(file: &Arc<SourceFile>, node: &XNode, name: &str) -> Location {
+    match node.attribute_node(name) {
+        Some(a) => Location::at_byte(file, a.range().start),
+        None => loc_of(file, node),
+    }
+}
+
+impl Parser {
+    fn parse_root(&mut self, path: &Path) -> Result<Node> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| SceneError::file(path, format!("cannot read scene file: {e}")))?;
+        let file = Arc::new(SourceFile { path: path.to_path_buf(), text });
+        self.parse_document(file)
+    }
+
+    fn parse_document(&mut self, file: Arc<SourceFile>) -> Result<Node> {
+        let doc = roxmltree::Document::parse(&file.text).map_err(|e| {
+            let p = e.pos();
+            SceneError::at(&Location::new(&file, p.row, p.col), format!("malformed XML: {e}"))
+        })?;
+        let root = doc.root_element();
+        let loc = loc_of(&file, &root);
+        if root.tag_name().name() != "scene" {
+            return Err(SceneError::at(&loc, format!("the root element is <{}>, expected <scene>", root.tag_name().name())));
+        }
+        let version = root.attribute("version").ok_or_else(|| {
+            SceneError::at(&loc, "<scene> has no version attribute").with_help("write <scene version=\"3.0.0\">")
+        })?;
+        let major = version.split('.').next().and_then(|m| m.trim().parse::<u32>().ok());
+        match major {
+            Some(m) if m >= 2 => {}
+            _ => {
+                return Err(SceneError::at(&attr_loc(&file, &root, "version"), format!("unsupported scene version \"{version}\""))
+                    .with_help("Snell reads Mitsuba 3 scenes (version 2.0.0 or later)"));
+            }
+        }
+        self.check_attrs(&file, &root, &["version"])?;
+        let mut node = Node { kind: Kind::Scene, plugin: String::new(), id: None, loc, props: vec![], children: vec![] };
+        self.parse_children(&file, &root, &mut node)?;
+        Ok(node)
+    }
+
+    /// `$name` substitution in an attribute value.
+    fn attr(&self, file: &Arc<SourceFile>, node: &XNode, name: &str) -> Result<Option<String>> {
+        let Some(raw) = node.attribute(name) else { return Ok(None) };
+        if !raw.contains('$') {
+            return Ok(Some(raw.to_string()));
+        }
+        let mut out = String::new();
+        let mut rest = raw;
+        while let Some(i) = rest.find('$') {
+            out.push_str(&rest[..i]);
+            let after = &rest[i + 1..];
+            let end = after.find(|c: char| !(c.is_alphanumeric() || c == '_')).unwrap_or(after.len());
+            let key = &after[..end];
+            match self.params.get(key) {
+                Some(v) if !key.is_empty() => out.push_str(v),
+                _ => {
+                    let mut known: Vec<&str> = self.params.keys().map(|s| s.as_str()).collect();
+                    known.sort();
+                    let help = if known.is_empty() {
+                        "declare it with <default name=\"…\" value=\"…\"/> or pass -D name=value".to_string()
+                    } else {
+                        format!("declare it with <default> or pass -D; defined parameters are: {}", known.join(", "))
+                    };
+                    return Err(SceneError::at(&attr_loc(file, node, name), format!("undefined parameter \"${key}\"")).with_help(help));
+                }
+            }
+            rest = &after[end..];
+        }
+        out.push_str(rest);
+        Ok(Some(out))
+    }
+
+    fn req_attr(&self, file: &Arc<SourceFile>, node: &XNode, name: &str) -> Result<String> {
+        self.attr(file, node, name)?.ok_or_else(|| {
+            SceneError::at(&loc_of(file, node), format!("<{}> needs a \"{name}\" attribute", node.tag_name().name()))
+        })
+    }
+
+    fn check_attrs(&self, file: &Arc<SourceFile>, node: &XNode, allowed: &[&str]) -> Result<()> {
+        for a in node.attributes() {
+            if !allowed.contains(&a.name()) {
+                return Err(SceneError::at(
+                    &Location::at_byte(file, a.range().start),
+                    format!("unexpected attribute \"{}\" on <{}>", a.name(), node.tag_name().name()),
+                )
+                .with_choices(allowed));
+            }
+        }
+        Ok(())
+    }
+
+    fn parse_children(&mut self, file: &Arc<SourceFile>, xml: &XNode, out: &mut Node) -> Result<()> {
+        for child in xml.children() {
+            if child.is_element() {
+                self.parse_element(file, &child, out)?;
+            } else if child.is_text() && !child.text().unwrap_or("").trim().is_empty() {
+                return Err(SceneError::at(&loc_of(file, &child), "unexpected text inside an element"));
+            }
+        }
+        Ok(())
+    }
+
+    fn parse_element(&mut self, file: &Arc<SourceFile>, x: &XNode, out: &mut Node) -> Result<()> {
+        let tag = x.tag_name().name();
+        let loc = loc_of(file, x);
+        if let Some(kind) = Kind::from_tag(tag).filter(|k| *k != Kind::Scene) {
+            self.check_attrs(file, x, &["type", "id", "name"])?;
+            let plugin = self.req_attr(file, x, "type")?;
+            let id = self.attr(file, x, "id")?;
+            let name = self.attr(file, x, "name")?;
+            let mut node = Node { kind, plugin, id, loc: loc.clone(), props: vec![], children: vec![] };
+            self.parse_children(file, x, &mut node)?;
+            out.children.push(Child { name, target: ChildTarget::Inline(Arc::new(node)), loc });
+            return Ok(());
+        }
+        match tag {
+            "default" => {
+                if out.kind != Kind::Scene {
+                    return Err(SceneError::at(&loc, "<default> may only appear directly inside <scene>"));
+                }
+                self.check_attrs(file, x, &["name", "value"])?;
+                let name = self.req_attr(file, x, "name")?;
+                let value = self.req_attr(file, x, "value")?;
+                self.params.entry(name).or_insert(value);
+            }
+            "ref" => {
+                self.check_attrs(file, x, &["id", "name"])?;
+                let id = self.req_attr(file, x, "id")?;
+                let name = self.attr(file, x, "name")?;
+                out.children.push(Child { name, target: ChildTarget::Ref(id), loc });
+            }
+            "include" => {
+                if out.kind != Kind::Scene {
+                    return Err(SceneError::at(&loc, "<include> may only appear directly inside <scene>"));
+                }
+                self.check_attrs(file, x, &["filename"])?;
+                let name = self.req_attr(file, x, "filename")?;
+                let base = file.path.parent().unwrap_or(Path::new("."));
+                let path = base.join(&name);
+                if self.include_depth > 16 {
+                    return Err(SceneError::at(&loc, "includes nested too deeply (a cycle?)"));
+                }
+                let text = std::fs::read_to_string(&path).map_err(|e| {
+                    SceneError::at(&attr_loc(file, x, "filename"), format!("cannot read included file {}: {e}", path.display()))
+                })?;
+                self.include_depth += 1;
+                let sub = self.parse_document(Arc::new(SourceFile { path, text }));
+                self.include_depth -= 1;
+                let sub = sub?;
+                out.props.extend(sub.props);
+                out.children.extend(sub.children);
+            }
+            "integer" | "float" | "boolean" | "string" | "rgb" | "spectrum" | "point" | "vector" | "transform" => {
+                let prop = self.parse_property(file, x)?;
+                if out.kind == Kind::Scene {
+                    return Err(SceneError::at(&prop.loc, format!("<{tag}> properties are not allowed directly inside <scene>")));
+                }
+                if let Some(prev) = out.props.iter().find(|p| p.name == prop.name) {
+                    return Err(SceneError::at(
+                        &prop.loc,
+                        format!("property \"{}\" is given twice (first at line {})", prop.name, prev.loc.line),
+                    ));
+                }
+                out.props.push(prop);
+            }
+            _ => {
+                let mut valid: Vec<&str> = Kind::ALL.iter().filter(|k| **k != Kind::Scene).map(|k| k.tag()).collect();
+                valid.extend([
+                    "ref", "default", "include", "integer", "float", "boolean", "string", "rgb", "spectrum", "point", "vector",
+                    "transform",
+                ]);
+                return Err(SceneError::at(&loc, format!("unknown element <{tag}>")).with_choices(&valid));
+            }
+        }
+        Ok(())
+    }
+
+    fn parse_property(&self, file: &Arc<SourceFile>, x: &XNode) -> Result<Prop> {
+        let tag = x.tag_name().name();
+        let loc = loc_of(file, x);
+        let name = self.req_attr(file, x, "name")?;
+        let num = |attr: &str| -> Result<f64> {
+            let s = self.req_attr(file, x, attr)?;
+            parse_f64(&s).ok_or_else(|| {
+                SceneError::at(&attr_loc(file, x, attr), format!("\"{s}\" is not a number (in <{tag} name=\"{name}\">)"))
+            })
+        };
+        let value = match tag {
+            "integer" => {
+                self.check_attrs(file, x, &["name", "value"])?;
+                let s = self.req_attr(file, x, "value")?;
+                let v = s.trim().parse::<i64>().map_err(|_| {
+                    SceneError::at(&attr_loc(file, x, "value"), format!("\"{s}\" is not an integer (in <integer name=\"{name}\">)"))
+                })?;
+                Value::Integer(v)
+            }
+            "float" => {
+                self.check_attrs(file, x, &["name", "value"])?;
+                Value::Float(num("value")?)
+            }
+            "boolean" => {
+                self.check_attrs(file, x, &["name", "value"])?;
+                let s = self.req_attr(file, x, "value")?;
+                match s.trim().to_ascii_lowercase().as_str() {
+                    "true" => Value::Boolean(true),
+                    "false" => Value::Boolean(false),
+                    _ => {
+                        return Err(SceneError::at(&attr_loc(file, x, "value"), format!("\"{s}\" is not a boolean"))
+                            .with_choices(&["true", "false"]));
+                    }
+                }
+            }
+            "string" => {
+                self.check_attrs(file, x, &["name", "value"])?;
+                Value::String(self.req_attr(file, x, "value")?)
+            }
+            "rgb" => {
+                self.check_attrs(file, x, &["name", "value"])?;
+                let s = self.req_attr(file, x, "value")?;
+                let v = parse_list(&s).filter(|v| v.len() == 3 || v.len() == 1).ok_or_else(|| {
+                    SceneError::at(&attr_loc(file, x, "value"), format!("\"{s}\" is not an RGB value (three numbers, or one)"))
+                })?;
+                let c = if v.len() == 1 { [v[0] as f32; 3] } else { [v[0] as f32, v[1] as f32, v[2] as f32] };
+                Value::Rgb(c)
+            }
+            "spectrum" => {
+                self.check_attrs(file, x, &["name", "value"])?;
+                let s = self.req_attr(file, x, "value")?;
+                match parse_list(&s) {
+                    Some(v) if v.len() == 1 => Value::Spectrum(v[0] as f32),
+                    _ => {
+                        return Err(SceneError::at(
+                            &attr_loc(file, x, "value"),
+                            format!("spectrum \"{s}\" is not a single constant value"),
+                        )
+                        .with_help("the RGB mode reads constant spectra only, e.g. <spectrum name=\"reflectance\" value=\"0.5\"/>"));
+                    }
+                }
+            }
+            "point" | "vector" => {
+                self.check_attrs(file, x, &["name", "value", "x", "y", "z"])?;
+                let v = self.parse_xyz(file, x, 0.0)?;
+                if tag == "point" { Value::Point(v) } else { Value::Vector(v) }
+            }
+            "transform" => {
+                self.check_attrs(file, x, &["name"])?;
+                Value::Transform(self.parse_transform(file, x)?)
+            }
+            _ => unreachable!("parse_property is called only for property tags"),
+        };
+        if !value_is_finite(&value) {
+            return Err(SceneError::at(&loc, format!("property \"{name}\" is not finite")));
+        }
+        Ok(Prop { name, value, loc })
+    }
+
+    /// A 3-vector from `value="x, y, z"` or from x/y/z attributes (missing ones
+    /// take `default`).
+    fn parse_xyz(&self, file: &Arc<SourceFile>, x: &XNode, default: f32) -> Result<Vec3> {
+        if let Some(s) = self.attr(file, x, "value")? {
+            let v = parse_list(&s).filter(|v| v.len() == 3 || v.len() == 1).ok_or_else(|| {
+                SceneError::at(&attr_loc(file, x, "value"), format!("\"{s}\" is not a 3-vector (three numbers)"))
+            })?;
+            return Ok(if v.len() == 1 { Vec3::splat(v[0] as f32) } else { Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32) });
+        }
+        let mut out = [default; 3];
+        for (i, a) in ["x", "y", "z"].iter().enumerate() {
+            if let Some(s) = self.attr(file, x, a)? {
+                out[i] = parse_f64(&s)
+                    .ok_or_else(|| SceneError::at(&attr_loc(file, x, a), format!("\"{s}\" is not a number")))?
+                    as f32;
+            }
+        }
+        Ok(Vec3::from_array(out))
+    }
+
+    fn vec_attr(&self, file: &Arc<SourceFile>, x: &XNode, name: &str) -> Result<Vec3> {
+        let s = self.req_attr(file, x, name)?;
+        parse_list(&s)
+            .filter(|v| v.len() == 3)
+            .map(|v| Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32))
+            .ok_or_else(|| SceneError::at(&attr_loc(file, x, name), format!("\"{s}\" is not a 3-vector (three numbers)")))
+    }
+
+    /// Transform operations, each applied after the ones before it
+    /// (Mitsuba: `M = op · M` in document order).
+    fn parse_transform(&self, file: &Arc<SourceFile>, x: &XNode) -> Result<Transform> {
+        let mut m = Transform::IDENTITY;
+        for op in x.children() {
+            if op.is_text() && op.text().unwrap_or("").trim().is_empty() || op.is_comment() {
+                continue;
+            }
+            let loc = loc_of(file, &op);
+            if !op.is_element() {
+                return Err(SceneError::at(&loc, "unexpected text inside <transform>"));
+            }
+            let tag = op.tag_name().name();
+            let degenerate = || SceneError::at(&loc, format!("<{tag}> gives a degenerate (non-invertible) transform"));
+            let t = match tag {
+                "translate" => {
+                    self.check_attrs(file, &op, &["value", "x", "y", "z"])?;
+                    Transform::from_matrix(Mat4::from_translation(self.parse_xyz(file, &op, 0.0)?)).ok_or_else(degenerate)?
+                }
+                "scale" => {
+                    self.check_attrs(file, &op, &["value", "x", "y", "z"])?;
+                    Transform::from_matrix(Mat4::from_scale(self.parse_xyz(file, &op, 1.0)?)).ok_or_else(degenerate)?
+                }
+                "rotate" => {
+                    self.check_attrs(file, &op, &["value", "x", "y", "z", "angle"])?;
+                    let axis = self.parse_xyz(file, &op, 0.0)?;
+                    let s = self.req_attr(file, &op, "angle")?;
+                    let angle = parse_f64(&s)
+                        .ok_or_else(|| SceneError::at(&attr_loc(file, &op, "angle"), format!("\"{s}\" is not a number")))?;
+                    Transform::rotate(axis, angle as f32)
+                        .ok_or_else(|| SceneError::at(&loc, "<rotate> needs a non-zero axis (x, y, z or value)"))?
+                }
+                "matrix" => {
+                    self.check_attrs(file, &op, &["value"])?;
+                    let s = self.req_attr(file, &op, "value")?;
+                    let v = parse_list(&s).filter(|v| v.len() == 16 || v.len() == 9).ok_or_else(|| {
+                        SceneError::at(&attr_loc(file, &op, "value"), "a matrix needs 16 numbers (row-major 4×4) or 9 (3×3)")
+                    })?;
+                    let f: Vec<f32> = v.iter().map(|&x| x as f32).collect();
+                    let mat = if f.len() == 16 {
+                        Mat4::from_cols_array(&[
+                            f[0], f[4], f[8], f[12], f[1], f[5], f[9], f[13], f[2], f[6], f[10], f[14], f[3], f[7], f[11], f[15],
+                        ])
+                    } else {
+                        Mat4::from_cols(
+                            Vec4::new(f[0], f[3], f[6], 0.0),
+                            Vec4::new(f[1], f[4], f[7], 0.0),
+                            Vec4::new(f[2], f[5], f[8], 0.0),
+                            Vec4::W,
+                        )
+                    };
+                    Transform::from_matrix(mat).ok_or_else(degenerate)?
+                }
+                "lookat" => {
+                    self.check_attrs(file, &op, &["origin", "target", "up"])?;
+                    let origin = self.vec_attr(file, &op, "origin")?;
+                    let target = self.vec_attr(file, &op, "target")?;
+                    let up = if op.attribute("up").is_some() { self.vec_attr(file, &op, "up")? } else { Vec3::Y };
+                    Transform::look_at(origin, target, up).ok_or_else(|| {
+                        SceneError::at(&loc, "<lookat> is degenerate: origin equals target, or up is parallel to the view direction")
+                    })?
+                }
+                _ => {
+                    return Err(SceneError::at(&loc, format!("unknown transform operation <{tag}>"))
+                        .with_choices(&["translate", "rotate", "scale", "matrix", "lookat"]));
+                }
+            };
+            m = t.compose(&m);
+        }
+        Ok(m)
+    }
+}
+
+fn value_is_finite(v: &Value) -> bool {
+    match v {
+        Value::Float(f) => f.is_finite(),
+        Value::Rgb(c) => c.iter().all(|x| x.is_finite()),
+        Value::Spectrum(s) => s.is_finite(),
+        Value::Point(p) | Value::Vector(p) => p.is_finite(),
+        Value::Transform(t) => t.matrix.is_finite(),
+        _ => true,
+    }
+}
+
+fn parse_f64(s: &str) -> Option<f64> {
+    s.trim().parse::<f64>().ok()
+}
+
+/// Numbers separated by commas and/or white space.
+fn parse_list(s: &str) -> Option<Vec<f64>> {
+    let v: Option<Vec<f64>> =
+        s.split(|c: char| c == ',' || c.is_whitespace()).filter(|t| !t.is_empty()).map(parse_f64).collect();
+    v.filter(|v| !v.is_empty())
+}

@@ -1,0 +1,30 @@
+//! Sensors: cameras that turn a film position into a primary ray.
+//!
+//! Film positions are in [0,1]², x to the right and y downwards. As in
+//! Mitsuba, the camera looks along +z of its `to_world`, with +x of camera
+//! space at the image's left and +y at its top.
+
+pub mod orthographic;
+pub mod perspective;
+
+pub use orthographic::Orthographic;
+pub use perspective::Perspective;
+
+use crate::geometry::Ray;
+use glam::Vec2;
+
+#[derive(Clone, Debug)]
+pub enum Camera {
+    Perspective(Perspective),
+    Orthographic(Orthographic),
+}
+
+impl Camera {
+    #[inline]
+    pub fn generate_ray(&self, film: Vec2) -> Ray {
+        match self {
+            Camera::Perspective(c) => c.generate_ray(film),
+            Camera::Orthographic(c) => c.generate_ray(film),
+        }
+    }
+}

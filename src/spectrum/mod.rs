@@ -1,0 +1,46 @@
+//! What a light path carries. Integrators and BSDFs are generic over
+//! [`Spectrum`], so a spectral mode (several sampled wavelengths per path) or a
+//! polarized one (Stokes vectors and Mueller matrices) is a new type
+//! implementing this trait, not a rewrite of the integrators.
+//!
+//! Scene inputs (reflectances, radiances) are stored as linear RGB and turned
+//! into the path's spectrum type at the point of use, given the path's
+//! wavelengths.
+
+mod rgb;
+
+pub use rgb::Rgb;
+
+use std::fmt::Debug;
+use std::ops::{Add, AddAssign, Div, Mul, MulAssign};
+
+pub trait Spectrum:
+    Copy
+    + Debug
+    + Send
+    + Sync
+    + Add<Output = Self>
+    + AddAssign
+    + Mul<Output = Self>
+    + MulAssign
+    + Mul<f32, Output = Self>
+    + MulAssign<f32>
+    + Div<f32, Output = Self>
+{
+    /// Per-path context the spectrum needs to interpret inputs: the sampled
+    /// wavelengths in a spectral mode, nothing in RGB mode.
+    type Wavelengths: Copy + Send + Sync + Debug;
+
+    fn zero() -> Self;
+    fn splat(v: f32) -> Self;
+    /// Draws the wavelengths a camera path carries (u uniform in [0,1)).
+    fn sample_wavelengths(u: f32) -> Self::Wavelengths;
+    /// A reflectance-like input (albedo in [0,1]) as this spectrum.
+    fn from_reflectance(rgb: Rgb, wavelengths: &Self::Wavelengths) -> Self;
+    /// An emission input (radiance, intensity, irradiance) as this spectrum.
+    fn from_illuminant(rgb: Rgb, wavelengths: &Self::Wavelengths) -> Self;
+    /// The film's linear RGB value of this path's radiance estimate.
+    fn to_rgb(&self, wavelengths: &Self::Wavelengths) -> Rgb;
+    fn max_component(&self) -> f32;
+    fn is_zero(&self) -> bool;
+}

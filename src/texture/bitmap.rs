@@ -1,0 +1,158 @@
+//! `bitmap` — an image texture (PNG, JPEG or OpenEXR).
+//!
+//! | parameter | type | default | meaning |
+//! |---|---|---|---|
+//! | `filename` | string | — | image file, relative to the scene file |
+//! | `filter_type` | string | `bilinear` | `bilinear` or `nearest` |
+//! | `wrap_mode` | string | `repeat` | `repeat`, `mirror` or `clamp` |
+//! | `raw` | boolean | false | use 8-bit values as they are (no sRGB decoding) |
+//! | `to_uv` | transform | identity | uv transform |
+//!
+//! As in Mitsuba, integer-valued images (PNG, JPEG) are sRGB-encoded and
+//! decoded to linear unless `raw` is set; EXR is linear. uv (0,0) is the
+//! image's top-left corner; texel centres are at (i + ½)/width.
+//!
+//! ```xml
+//! <texture type="bitmap" name="reflectance">
+//!     <string name="filename" value="textures/wood.png"/>
+//! </texture>
+//! ```
+
+use crate::spectrum::Rgb;
+use glam::{Affine2, Vec2};
+use std::path::Path;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Filter {
+    Nearest,
+    Bilinear,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wrap {
+    Repeat,
+    Mirror,
+    Clamp,
+}
+
+#[derive(Clone, Debug)]
+pub struct Bitmap {
+    pub width: usize,
+    pub height: usize,
+    pub texels: Vec<Rgb>,
+    pub filter: Filter,
+    pub wrap: Wrap,
+    pub to_uv: Affine2,
+}
+
+pub fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.04045 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) }
+}
+
+pub fn linear_to_srgb(v: f32) -> f32 {
+    if v <= 0.0031308 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 }
+}
+
+/// Reads an image as linear RGB texels (row 0 at the top).
+pub fn read_image(path: &Path, raw: bool) -> Result<(usize, usize, Vec<Rgb>), String> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    if ext == "exr" {
+        use exr::prelude::*;
+        let image = read_first_rgba_layer_from_file(
+            path,
+            |res, _| (res.width(), res.height(), vec![Rgb::BLACK; res.width() * res.height()]),
+            |(w, _, px), pos, (r, g, b, _a): (f32, f32, f32, f32)| px[pos.y() * *w + pos.x()] = Rgb::new(r, g, b),
+        )
+        .map_err(|e| format!("cannot read EXR image {}: {e}", path.display()))?;
+        let (w, h, px) = image.layer_data.channel_data.pixels;
+        if px.iter().any(|p| !p.is_finite()) {
+            return Err(format!("EXR image {} contains NaN or infinite values", path.display()));
+        }
+        return Ok((w, h, px));
+    }
+    let img = image::ImageReader::open(path)
+        .map_err(|e| format!("cannot open image {}: {e}", path.display()))?
+        .with_guessed_format()
+        .map_err(|e| format!("cannot read image {}: {e}", path.display()))?
+        .decode()
+        .map_err(|e| format!("cannot decode image {}: {e}", path.display()))?;
+    let rgb = img.to_rgb32f();
+    let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+    let decode = |v: f32| if raw { v } else { srgb_to_linear(v) };
+    let px = rgb.pixels().map(|p| Rgb::new(decode(p[0]), decode(p[1]), decode(p[2]))).collect();
+    Ok((w, h, px))
+}
+
+fn wrap(i: i64, n: usize, mode: Wrap) -> usize {
+    let n = n as i64;
+    (match mode {
+        Wrap::Repeat => i.rem_euclid(n),
+        Wrap::Clamp => i.clamp(0, n - 1),
+        Wrap::Mirror => {
+            let p = i.rem_euclid(2 * n);
+            if p < n { p } else { 2 * n - 1 - p }
+        }
+    }) as usize
+}
+
+impl Bitmap {
+    #[inline]
+    fn texel(&self, x: i64, y: i64) -> Rgb {
+        self.texels[wrap(y, self.height, self.wrap) * self.width + wrap(x, self.width, self.wrap)]
+    }
+
+    pub fn eval(&self, uv: Vec2) -> Rgb {
+        let uv = self.to_uv.transform_point2(uv);
+        if !uv.is_finite() {
+            return Rgb::BLACK;
+        }
+        let x = uv.x * self.width as f32;
+        let y = uv.y * self.height as f32;
+        match self.filter {
+            Filter::Nearest => self.texel(x.floor() as i64, y.floor() as i64),
+            Filter::Bilinear => {
+                let (x, y) = (x - 0.5, y - 0.5);
+                let (x0, y0) = (x.floor(), y.floor());
+                let (fx, fy) = (x - x0, y - y0);
+                let (x0, y0) = (x0 as i64, y0 as i64);
+                self.texel(x0, y0) * ((1.0 - fx) * (1.0 - fy))
+                    + self.texel(x0 + 1, y0) * (fx * (1.0 - fy))
+                    + self.texel(x0, y0 + 1) * ((1.0 - fx) * fy)
+                    + self.texel(x0 + 1, y0 + 1) * (fx * fy)
+            }
+        }
+    }
+
+    pub fn max_value(&self) -> f32 {
+        self.texels.iter().flat_map(|t| t.0).fold(0.0, f32::max)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_round_trip() {
+        for i in 0..=100 {
+            let v = i as f32 / 100.0;
+            assert!((linear_to_srgb(srgb_to_linear(v)) - v).abs() < 1e-5);
+        }
+        assert!((srgb_to_linear(0.5) - 0.214).abs() < 1e-3);
+    }
+
+    #[test]
+    fn bilinear_interpolates_between_texel_centres() {
+        let b = Bitmap {
+            width: 2,
+            height: 1,
+            texels: vec![Rgb::BLACK, Rgb::WHITE],
+            filter: Filter::Bilinear,
+            wrap: Wrap::Clamp,
+            to_uv: Affine2::IDENTITY,
+        };
+        assert_eq!(b.eval(Vec2::new(0.25, 0.5)), Rgb::BLACK);
+        assert_eq!(b.eval(Vec2::new(0.75, 0.5)), Rgb::WHITE);
+        assert!((b.eval(Vec2::new(0.5, 0.5))[0] - 0.5).abs() < 1e-6);
+    }
+}

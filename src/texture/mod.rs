@@ -1,0 +1,50 @@
+//! Textures: functions of the surface's uv returning linear RGB.
+//!
+//! `to_uv` (a `<transform name="to_uv">`) maps the shape's uv before lookup;
+//! its 2-D affine part (upper-left 2×2 and the x/y translation) is used, as
+//! in Mitsuba.
+
+pub mod bitmap;
+pub mod checkerboard;
+
+pub use bitmap::Bitmap;
+pub use checkerboard::Checkerboard;
+
+use crate::spectrum::Rgb;
+use glam::{Affine2, Mat2, Mat4, Vec2};
+use std::sync::Arc;
+
+#[derive(Clone, Debug)]
+pub enum Texture {
+    Constant(Rgb),
+    Bitmap(Arc<Bitmap>),
+    Checkerboard(Checkerboard),
+}
+
+impl Texture {
+    #[inline]
+    pub fn eval(&self, uv: Vec2) -> Rgb {
+        match self {
+            Texture::Constant(c) => *c,
+            Texture::Bitmap(b) => b.eval(uv),
+            Texture::Checkerboard(c) => c.eval(uv),
+        }
+    }
+
+    /// The largest value the texture takes (for energy checks).
+    pub fn max_value(&self) -> f32 {
+        match self {
+            Texture::Constant(c) => c.0.into_iter().fold(0.0, f32::max),
+            Texture::Bitmap(b) => b.max_value(),
+            Texture::Checkerboard(c) => c.color0.0.into_iter().chain(c.color1.0).fold(0.0, f32::max),
+        }
+    }
+}
+
+/// The 2-D affine part of a 4×4 `to_uv` matrix.
+pub fn uv_transform(m: &Mat4) -> Affine2 {
+    Affine2 {
+        matrix2: Mat2::from_cols(Vec2::new(m.x_axis.x, m.x_axis.y), Vec2::new(m.y_axis.x, m.y_axis.y)),
+        translation: Vec2::new(m.w_axis.x, m.w_axis.y),
+    }
+}
