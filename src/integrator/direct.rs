@@ -9,12 +9,18 @@
 //! power heuristic. Delta emitters (point, directional) are sampled only by
 //! emitter sampling; delta BSDF lobes only by BSDF sampling.
 //!
+//! With `emitter_samples` = n, each of the n emitter samples carries weight
+//! 1/n — for delta emitters too. (Mitsuba 3.9 gives delta emitters weight 1
+//! per sample, so its point and directional lights come out n times too
+//! bright when n > 1; Snell keeps the physically correct estimate, which the
+//! point-light closed-form test checks.)
+//!
 //! | parameter | type | default | meaning |
 //! |---|---|---|---|
 //! | `emitter_samples` | integer | `shading_samples` | emitter samples per camera ray |
 //! | `bsdf_samples` | integer | `shading_samples` | BSDF samples per camera ray |
 //! | `shading_samples` | integer | 1 | default for both |
-//! | `hide_emitters` | boolean | false | hide directly visible emitters |
+//! | `hide_emitters` | boolean | false | hide directly visible emitters (camera rays pass through emitting shapes) |
 //!
 //! ```xml
 //! <integrator type="direct"><integer name="emitter_samples" value="4"/></integrator>
@@ -37,7 +43,8 @@ pub struct Direct {
 impl Direct {
     pub fn li<S: Spectrum>(&self, scene: &Scene, ray: Ray, sampler: &mut Sampler, wl: &S::Wavelengths) -> S {
         let mut result = S::zero();
-        let Some(si) = scene.intersect(&ray) else {
+        let hit = if self.hide_emitters { scene.intersect_hiding_emitters(&ray) } else { scene.intersect(&ray) };
+        let Some(si) = hit else {
             if !self.hide_emitters {
                 if let Some(env) = scene.environment_radiance() {
                     result += S::from_illuminant(env, wl);

@@ -12,7 +12,7 @@
 //! |---|---|---|---|
 //! | `max_depth` | integer | -1 | longest path in segments; -1 = unlimited, 1 = emitters only, 2 = direct light |
 //! | `rr_depth` | integer | 5 | depth at which Russian roulette starts |
-//! | `hide_emitters` | boolean | false | hide directly visible emitters |
+//! | `hide_emitters` | boolean | false | hide directly visible emitters (camera rays pass through emitting shapes) |
 //!
 //! ```xml
 //! <integrator type="path"><integer name="max_depth" value="8"/></integrator>
@@ -45,7 +45,7 @@ impl PathTracer {
         let mut prev_delta = true;
 
         loop {
-            let hit = scene.intersect(&ray);
+            let hit = if self.hide_emitters && depth == 0 { scene.intersect_hiding_emitters(&ray) } else { scene.intersect(&ray) };
             let visible = !(self.hide_emitters && depth == 0);
             let Some(si) = hit else {
                 if visible {

@@ -220,17 +220,19 @@ impl Loader {
         if bsdf_nodes.len() > 1 {
             return Err(SceneError::at(&bsdf_nodes[1].loc, "a shape takes at most one BSDF"));
         }
-        let bsdf = match bsdf_nodes.first() {
-            Some(b) => self.bsdf(b)?,
-            None => {
-                // Mitsuba's default material: diffuse, reflectance 0.5.
-                self.bsdfs.push(Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(Rgb::new(0.5, 0.5, 0.5)) }));
-                self.bsdfs.len() as u32 - 1
-            }
-        };
         if emitter_nodes.len() > 1 {
             return Err(SceneError::at(&emitter_nodes[1].loc, "a shape takes at most one emitter"));
         }
+        let bsdf = match bsdf_nodes.first() {
+            Some(b) => self.bsdf(b)?,
+            None => {
+                // Mitsuba's default material: diffuse 0.5, but black on an
+                // emitter (a light source reflects nothing unless told to).
+                let albedo = if emitter_nodes.is_empty() { 0.5 } else { 0.0 };
+                self.bsdfs.push(Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(Rgb::new(albedo, albedo, albedo)) }));
+                self.bsdfs.len() as u32 - 1
+            }
+        };
         let emitter = match emitter_nodes.first() {
             Some(e) => Some(self.area_emitter(e, shape_index)?),
             None => None,
@@ -402,7 +404,7 @@ impl Loader {
                 .with_choices(&["area"]));
         }
         let props = Props::new(node);
-        let radiance = props.color_opt("radiance")?.ok_or_else(|| SceneError::at(&node.loc, "area emitter needs \"radiance\""))?;
+        let radiance = props.illuminant_opt("radiance")?.ok_or_else(|| SceneError::at(&node.loc, "area emitter needs \"radiance\""))?;
         props.finish()?;
         self.emitters.push(Emitter::Area(AreaLight { shape, radiance }));
         Ok(self.emitters.len() as u32 - 1)
@@ -418,10 +420,10 @@ impl Loader {
                 let to_world = props.transform("to_world")?;
                 let position = props.vec3_opt("position")?.unwrap_or_else(|| to_world.point(Vec3::ZERO));
                 let intensity =
-                    props.color_opt("intensity")?.ok_or_else(|| SceneError::at(&node.loc, "point emitter needs \"intensity\""))?;
+                    props.illuminant_opt("intensity")?.ok_or_else(|| SceneError::at(&node.loc, "point emitter needs \"intensity\""))?;
                 Emitter::Point(PointLight { position, intensity })
             }
-            "constant" => Emitter::Constant(ConstantLight { radiance: props.color("radiance", Rgb::WHITE)? }),
+            "constant" => Emitter::Constant(ConstantLight { radiance: props.illuminant_opt("radiance")?.unwrap_or(Rgb::WHITE) }),
             "directional" => {
                 let to_world = props.transform("to_world")?;
                 let direction = props.vec3_opt("direction")?.unwrap_or_else(|| to_world.vector(Vec3::Z)).normalize_or_zero();
@@ -429,7 +431,7 @@ impl Loader {
                     return Err(SceneError::at(&node.loc, "directional emitter has a zero direction"));
                 }
                 let irradiance = props
-                    .color_opt("irradiance")?
+                    .illuminant_opt("irradiance")?
                     .ok_or_else(|| SceneError::at(&node.loc, "directional emitter needs \"irradiance\""))?;
                 Emitter::Directional(DirectionalLight { direction, irradiance })
             }

@@ -48,6 +48,21 @@ impl Scene {
         Some(self.shapes[hit.shape as usize].interaction(hit.shape, hit.prim, ray.o, ray.d, hit.t))
     }
 
+    /// The first hit on a shape that does not emit: Mitsuba's
+    /// `hide_emitters` lets camera rays pass through emitting shapes.
+    pub fn intersect_hiding_emitters(&self, ray: &Ray) -> Option<SurfaceInteraction> {
+        let mut ray = *ray;
+        for _ in 0..64 {
+            let si = self.intersect(&ray)?;
+            if self.shapes[si.shape as usize].emitter.is_none() {
+                return Some(si);
+            }
+            let o = si.spawn_origin(ray.d);
+            ray = Ray { o, d: ray.d, tmax: ray.tmax - (o - ray.o).length() };
+        }
+        None
+    }
+
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
         self.accel.occluded(ray)

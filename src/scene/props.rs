@@ -9,6 +9,10 @@ use crate::spectrum::Rgb;
 use glam::Vec3;
 use std::cell::Cell;
 
+/// Linear sRGB of the equal-energy spectrum of unit value (CIE 1931 2°
+/// observer, XYZ → sRGB; Mitsuba 3 gives the same triple).
+pub const EQUAL_ENERGY_WHITE: Rgb = Rgb::new(1.204_794, 0.948_291, 0.908_916);
+
 pub struct Props<'a> {
     pub node: &'a Node,
     used: Vec<Cell<bool>>,
@@ -170,6 +174,16 @@ impl<'a> Props<'a> {
             Some((_, Value::Integer(v))) => Ok(Some(Rgb([*v as f32; 3]))),
             Some((i, _)) => Err(self.type_error(i, "rgb, spectrum or float")),
         }
+    }
+
+    /// An emission colour. A constant `<spectrum>` here means equal-energy
+    /// light, whose linear-sRGB value is not grey: Mitsuba's RGB variants
+    /// scale it by the sRGB coordinates of the equal-energy white point.
+    pub fn illuminant_opt(&self, name: &str) -> Result<Option<Rgb>> {
+        if let Some((_, Value::Spectrum(v))) = self.find(name) {
+            return Ok(Some(EQUAL_ENERGY_WHITE * *v));
+        }
+        self.color_opt(name)
     }
 
     pub fn color(&self, name: &str, default: Rgb) -> Result<Rgb> {

@@ -1,0 +1,145 @@
+//! Shared helpers for image tests: render a scene in independent passes and
+//! compare it with a reference (Mitsuba's image, or a closed form) block by
+//! block, separating bias from noise.
+#![allow(dead_code)]
+
+use snell::film::Image;
+use snell::spectrum::Rgb;
+use snell::{LoadOptions, RenderOptions};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+pub fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
+}
+
+pub fn params(list: &[(&str, &str)]) -> HashMap<String, String> {
+    list.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect()
+}
+
+/// Renders `passes` independent images (seeds 1..=passes) of `spp` samples each.
+pub fn render_passes(scene: &Path, text: Option<&str>, params: HashMap<String, String>, passes: u32, spp: u32) -> Vec<Image> {
+    let options = LoadOptions { params, spp: Some(spp), seed: None };
+    let mut scene = match text {
+        Some(t) => snell::load_str(scene, t, &options),
+        None => snell::load_file(scene, &options),
+    }
+    .unwrap_or_else(|e| panic!("{e}"));
+    (1..=passes)
+        .map(|seed| {
+            scene.sampler.seed = seed as u64 * 7919;
+            snell::render::<Rgb>(&scene, &RenderOptions::default()).expect("render").0
+        })
+        .collect()
+}
+
+pub fn mean(img: &Image) -> [f64; 3] {
+    let mut m = [0.0f64; 3];
+    for p in &img.pixels {
+        for c in 0..3 {
+            m[c] += p[c] as f64;
+        }
+    }
+    m.map(|v| v / img.pixels.len() as f64)
+}
+
+pub fn average(images: &[Image]) -> Image {
+    let n = images.len() as f32;
+    let mut out = images[0].clone();
+    for (i, p) in out.pixels.iter_mut().enumerate() {
+        let mut s = Rgb::BLACK;
+        for img in images {
+            s += img.pixels[i];
+        }
+        *p = s / n;
+    }
+    out
+}
+
+fn block_means(img: &Image, block: u32, x: u32, y: u32) -> [f64; 3] {
+    let mut m = [0.0f64; 3];
+    for j in y * block..(y + 1) * block {
+        for i in x * block..(x + 1) * block {
+            let p = img.pixels[(j * img.width + i) as usize];
+            for c in 0..3 {
+                m[c] += p[c] as f64;
+            }
+        }
+    }
+    m.map(|v| v / (block * block) as f64)
+}
+
+pub struct Comparison {
+    pub mean_ratio: [f64; 3],
+    /// Mean of z² over blocks and channels (≈ 1 when unbiased).
+    pub mean_z2: f64,
+    pub max_z: f64,
+    pub worst_block: (u32, u32, usize),
+    /// relMSE of the averaged render against the reference.
+    pub rel_mse: f64,
+    pub blocks: usize,
+}
+
+/// Compares independent passes with a reference image. Each block's
+/// standard error comes from the spread of the passes; `ref_rel_err` is the
+/// reference's own relative error (0 for a closed form).
+pub fn compare(passes: &[Image], reference: &Image, block: u32, ref_rel_err: f64) -> Comparison {
+    let avg = average(passes);
+    assert_eq!((avg.width, avg.height), (reference.width, reference.height), "image sizes differ");
+    let (ma, mr) = (mean(&avg), mean(reference));
+    let mean_ratio = [0, 1, 2].map(|c| if mr[c] > 0.0 { ma[c] / mr[c] } else { 1.0 + ma[c] });
+    let k = passes.len() as f64;
+    let (mut sum_z2, mut max_z, mut n, mut worst) = (0.0, 0.0f64, 0usize, (0, 0, 0));
+    for by in 0..reference.height / block {
+        for bx in 0..reference.width / block {
+            let r = block_means(reference, block, bx, by);
+            let per_pass: Vec<[f64; 3]> = passes.iter().map(|p| block_means(p, block, bx, by)).collect();
+            for c in 0..3 {
+                let m = per_pass.iter().map(|p| p[c]).sum::<f64>() / k;
+                let var = per_pass.iter().map(|p| (p[c] - m).powi(2)).sum::<f64>() / (k - 1.0);
+                let se2 = var / k + (ref_rel_err * r[c]).powi(2);
+                if se2 <= 1e-14 {
+                    // A noiseless block (e.g. black, or a constant background) must match exactly.
+                    assert!((m - r[c]).abs() <= 1e-4 * (1.0 + r[c].abs()), "block ({bx},{by}) channel {c}: {m} vs {}", r[c]);
+                    continue;
+                }
+                let z = (m - r[c]) / se2.sqrt();
+                sum_z2 += z * z;
+                n += 1;
+                if z.abs() > max_z {
+                    max_z = z.abs();
+                    worst = (bx, by, c);
+                }
+            }
+        }
+    }
+    let mut rel_mse = 0.0;
+    for (a, r) in avg.pixels.iter().zip(&reference.pixels) {
+        for c in 0..3 {
+            rel_mse += ((a[c] - r[c]) as f64).powi(2) / ((r[c] as f64).powi(2) + 1e-2);
+        }
+    }
+    rel_mse /= (avg.pixels.len() * 3) as f64;
+    Comparison { mean_ratio, mean_z2: if n > 0 { sum_z2 / n as f64 } else { 0.0 }, max_z, worst_block: worst, rel_mse, blocks: n }
+}
+
+impl Comparison {
+    pub fn report(&self, name: &str) {
+        eprintln!(
+            "{name}: mean ratio R {:.4} G {:.4} B {:.4}; blocks {} mean z² {:.2}, max |z| {:.2} at {:?}; relMSE {:.2e}",
+            self.mean_ratio[0], self.mean_ratio[1], self.mean_ratio[2], self.blocks, self.mean_z2, self.max_z, self.worst_block, self.rel_mse
+        );
+    }
+
+    /// Unbiased within noise: image means within `tol` (relative) and no block
+    /// implausibly far from the reference given its standard error.
+    pub fn assert_unbiased(&self, name: &str, tol: f64) {
+        self.report(name);
+        for c in 0..3 {
+            assert!((self.mean_ratio[c] - 1.0).abs() < tol, "{name}: channel {c} mean ratio {:.4} outside ±{tol}", self.mean_ratio[c]);
+        }
+        // With 16 passes z follows Student's t (15 dof): E[z²] ≈ 1.15 and |z| > 6 has probability 2e-5.
+        assert!(self.mean_z2 < 2.0, "{name}: mean z² = {:.2} — a bias larger than the noise", self.mean_z2);
+        assert!(self.max_z < 6.0, "{name}: block {:?} is {:.1} standard errors off", self.worst_block, self.max_z);
+    }
+}
