@@ -144,7 +144,10 @@ struct Parser {
 type XNode<'a, 'i> = roxmltree::Node<'a, 'i>;
 
 fn loc_of(file: &Arc<SourceFile>, node: &XNode) -> Location {
-    Location::at_byte(file, node.range().start)
+    let r = node.range();
+    // Text starts with the white space after the previous tag: point at the text itself.
+    let skip = if node.is_text() { file.text.get(r.clone()).map_or(0, |s| s.len() - s.trim_start().len()) } else { 0 };
+    Location::at_byte(file, r.start + skip)
 }
 
 fn attr_loc(file: &Arc<SourceFile>, node: &XNode, name: &str) -> Location {
@@ -163,6 +166,11 @@ impl Parser {
     }
 
     fn parse_document(&mut self, file: Arc<SourceFile>) -> Result<Node> {
+        // A UTF-8 byte-order mark is not part of the first line's columns.
+        let file = match file.text.strip_prefix('\u{feff}') {
+            Some(text) => Arc::new(SourceFile { path: file.path.clone(), text: text.to_string() }),
+            None => file,
+        };
         let doc = roxmltree::Document::parse(&file.text).map_err(|e| {
             let p = e.pos();
             SceneError::at(&Location::new(&file, p.row, p.col), format!("malformed XML: {e}"))
