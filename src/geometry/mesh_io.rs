@@ -145,7 +145,7 @@ pub fn read_ply(path: &Path) -> Result<RawMesh, String> {
             return Err(err("a face has fewer than three vertices"));
         }
         if idx.iter().any(|&i| i < 0 || i > u32::MAX as i64) {
-            return Err(err("a face has a negative vertex index"));
+            return Err(err("a face has a vertex index that is negative or too large"));
         }
         for k in 1..idx.len() - 1 {
             out.triangles.push([idx[0] as u32, idx[k] as u32, idx[k + 1] as u32]);
