@@ -1,0 +1,249 @@
+//! The `snell` command-line tool, run as a separate process on small scenes.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// A diffuse sphere lit by a constant environment; 32×24 at 4 spp by default.
+const SCENE: &str = r#"<scene version="3.0.0">
+    <default name="res" value="32"/>
+    <default name="height" value="24"/>
+    <integrator type="path">
+        <integer name="max_depth" value="3"/>
+    </integrator>
+    <sensor type="perspective">
+        <float name="fov" value="40"/>
+        <transform name="to_world">
+            <lookat origin="0, 0, 4" target="0, 0, 0" up="0, 1, 0"/>
+        </transform>
+        <sampler type="independent">
+            <integer name="sample_count" value="4"/>
+            <integer name="seed" value="3"/>
+        </sampler>
+        <film type="hdrfilm">
+            <integer name="width" value="$res"/>
+            <integer name="height" value="$height"/>
+        </film>
+    </sensor>
+    <emitter type="constant">
+        <rgb name="radiance" value="1"/>
+    </emitter>
+    <shape type="sphere">
+        <bsdf type="diffuse">
+            <rgb name="reflectance" value="0.2, 0.5, 0.8"/>
+        </bsdf>
+    </shape>
+</scene>
+"#;
+
+/// A fresh folder holding `scene.xml`.
+fn setup(name: &str) -> (PathBuf, PathBuf) {
+    let dir = std::env::temp_dir().join(format!("snell-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("scene.xml");
+    std::fs::write(&scene, SCENE).unwrap();
+    (dir, scene)
+}
+
+fn snell(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_snell")).args(args).current_dir(cwd).output().expect("cannot run snell")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[track_caller]
+fn assert_success(out: &Output) {
+    assert!(
+        out.status.success(),
+        "snell failed ({}):\nstdout:\n{}\nstderr:\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[track_caller]
+fn assert_failure(out: &Output) -> String {
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(!out.status.success(), "snell should have failed:\n{stderr}");
+    assert_ne!(out.status.code(), Some(0));
+    assert!(!stderr.contains("panicked"), "snell panicked:\n{stderr}");
+    stderr
+}
+
+#[track_caller]
+fn read_exr(path: &Path) -> snell::film::Image {
+    snell::film::output::read_exr(path).unwrap_or_else(|e| panic!("cannot read {}: {e:#}", path.display()))
+}
+
+#[test]
+fn renders_exr_png_and_pfm() {
+    let (dir, scene) = setup("formats");
+    let (exr, png, pfm) = (dir.join("out.exr"), dir.join("out.png"), dir.join("out.pfm"));
+    let out = snell(&["render", s(&scene), "-o", s(&exr), "-o", s(&png), "--output", s(&pfm)], &dir);
+    assert_success(&out);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("rendered 32×24 at 4 spp"), "{stderr}");
+
+    let img = read_exr(&exr);
+    assert_eq!((img.width, img.height), (32, 24));
+    assert_eq!(img.pixels.len(), 32 * 24);
+    assert!(img.pixels.iter().all(|p| (0..3).all(|c| p[c].is_finite() && p[c] >= 0.0)), "non-finite or negative pixels");
+    // The environment (radiance 1) shows at the corner; the bluish sphere in the middle.
+    let corner = img.pixels[0];
+    assert!((0..3).all(|c| (corner[c] - 1.0).abs() < 1e-3), "corner {corner:?}");
+    let centre = img.pixels[12 * 32 + 16];
+    assert!(centre[2] > centre[0] && centre[0] > 0.0, "centre {centre:?}");
+
+    let decoded = image::open(&png).expect("cannot read the PNG");
+    assert_eq!((decoded.width(), decoded.height()), (32, 24));
+    let rgb = decoded.to_rgb8();
+    assert_eq!(rgb.get_pixel(0, 0).0, [255, 255, 255]);
+
+    let bytes = std::fs::read(&pfm).unwrap();
+    let header = b"PF\n32 24\n-1.0\n";
+    assert!(bytes.starts_with(header), "PFM header {:?}", String::from_utf8_lossy(&bytes[..header.len().min(bytes.len())]));
+    assert_eq!(bytes.len(), header.len() + 32 * 24 * 3 * 4);
+    // PFM stores the bottom row first.
+    let last_row_first = f32::from_le_bytes(bytes[header.len()..header.len() + 4].try_into().unwrap());
+    assert_eq!(last_row_first.to_bits(), img.pixels[23 * 32][0].to_bits());
+}
+
+#[test]
+fn default_output_is_the_scene_name_in_the_current_folder() {
+    let (dir, _scene) = setup("default-output");
+    let out = snell(&["render", "scene.xml", "-q"], &dir);
+    assert_success(&out);
+    assert!(out.stderr.is_empty(), "-q should print nothing: {}", String::from_utf8_lossy(&out.stderr));
+    let img = read_exr(&dir.join("scene.exr"));
+    assert_eq!((img.width, img.height), (32, 24));
+}
+
+#[test]
+fn stats_json() {
+    let (dir, scene) = setup("stats");
+    let stats = dir.join("stats.json");
+    let out = snell(&["render", s(&scene), "-o", s(&dir.join("o.exr")), "--stats", s(&stats), "--threads", "2", "-q"], &dir);
+    assert_success(&out);
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).expect("stats are not JSON");
+    assert_eq!(json["width"], 32);
+    assert_eq!(json["height"], 24);
+    assert_eq!(json["spp"], 4);
+    assert_eq!(json["threads"], 2);
+    let seconds = json["render_seconds"].as_f64().expect("render_seconds");
+    assert!(seconds >= 0.0 && seconds.is_finite(), "{json}");
+    let rate = json["samples_per_second"].as_f64().expect("samples_per_second");
+    assert!(rate > 0.0 && rate.is_finite(), "{json}");
+}
+
+#[test]
+fn spp_and_defines_take_effect() {
+    let (dir, scene) = setup("overrides");
+    let (exr, stats) = (dir.join("o.exr"), dir.join("stats.json"));
+    let out = snell(&["render", s(&scene), "-o", s(&exr), "--spp", "2", "-D", "res=16", "-D", "height=8", "--stats", s(&stats)], &dir);
+    assert_success(&out);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("rendered 16×8 at 2 spp"), "{stderr}");
+    let img = read_exr(&exr);
+    assert_eq!((img.width, img.height), (16, 8));
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!((json["width"].as_u64(), json["height"].as_u64(), json["spp"].as_u64()), (Some(16), Some(8), Some(2)));
+
+    // Just one of the two parameters.
+    let out = snell(&["render", s(&scene), "-o", s(&exr), "-q", "-D", "res=16"], &dir);
+    assert_success(&out);
+    let img = read_exr(&exr);
+    assert_eq!((img.width, img.height), (16, 24));
+}
+
+#[test]
+fn bad_define_and_bad_spp() {
+    let (dir, scene) = setup("bad-args");
+    let out_exr = dir.join("o.exr");
+    let stderr = assert_failure(&snell(&["render", s(&scene), "-o", s(&out_exr), "-D", "res"], &dir));
+    assert!(stderr.contains("expected NAME=VALUE"), "{stderr}");
+    let stderr = assert_failure(&snell(&["render", s(&scene), "-o", s(&out_exr), "-D", "a b=1"], &dir));
+    assert!(stderr.contains("not a valid parameter name"), "{stderr}");
+    let stderr = assert_failure(&snell(&["render", s(&scene), "-o", s(&out_exr), "--spp", "0"], &dir));
+    assert!(stderr.contains("--spp must be at least 1"), "{stderr}");
+    // A define whose value is wrong where it is used: the error is located in the scene.
+    let stderr = assert_failure(&snell(&["render", s(&scene), "-o", s(&out_exr), "-D", "res=0"], &dir));
+    assert!(stderr.contains(&format!("{}:17:13", scene.display())), "{stderr}");
+    assert!(stderr.contains("\"width\" must be between 1 and 65536"), "{stderr}");
+    assert!(!out_exr.exists());
+}
+
+#[test]
+fn bad_scene_reports_file_line_and_column() {
+    let (dir, scene) = setup("bad-scene");
+    std::fs::write(&scene, SCENE.replace("<bsdf type=\"diffuse\">", "<bsdf type=\"difuse\">")).unwrap();
+    let out_exr = dir.join("o.exr");
+    let stderr = assert_failure(&snell(&["render", s(&scene), "-o", s(&out_exr)], &dir));
+    assert!(stderr.contains(&format!("{}:25:9", scene.display())), "{stderr}");
+    assert!(stderr.contains("error: unknown bsdf plugin \"difuse\""), "{stderr}");
+    assert!(stderr.contains("25 |         <bsdf type=\"difuse\">"), "{stderr}");
+    assert!(stderr.contains("valid choices are: diffuse, twosided"), "{stderr}");
+    assert!(!out_exr.exists());
+
+    // An undefined parameter on the command line's side.
+    std::fs::write(&scene, SCENE.replace("<default name=\"height\" value=\"24\"/>", "")).unwrap();
+    let stderr = assert_failure(&snell(&["render", s(&scene), "-o", s(&out_exr)], &dir));
+    assert!(stderr.contains(&format!("{}:18:36", scene.display())), "{stderr}");
+    assert!(stderr.contains("undefined parameter \"$height\""), "{stderr}");
+    // ... which -D fixes.
+    assert_success(&snell(&["render", s(&scene), "-o", s(&out_exr), "-q", "-D", "height=4"], &dir));
+    assert_eq!(read_exr(&out_exr).height, 4);
+}
+
+#[test]
+fn unknown_output_extension() {
+    let (dir, scene) = setup("bad-extension");
+    let jpg = dir.join("out.jpg");
+    let stderr = assert_failure(&snell(&["render", s(&scene), "-o", s(&dir.join("ok.exr")), "-o", s(&jpg)], &dir));
+    assert!(stderr.contains("cannot tell the image format of"), "{stderr}");
+    assert!(stderr.contains("out.jpg"), "{stderr}");
+    assert!(stderr.contains(".exr, .png, .pfm"), "{stderr}");
+    // Checked before rendering: nothing is written.
+    assert!(!jpg.exists() && !dir.join("ok.exr").exists());
+    let stderr = assert_failure(&snell(&["render", s(&scene), "-o", s(&dir.join("noextension"))], &dir));
+    assert!(stderr.contains("cannot tell the image format of"), "{stderr}");
+}
+
+#[test]
+fn missing_scene_file() {
+    let (dir, _) = setup("missing-scene");
+    let missing = dir.join("nothere.xml");
+    let stderr = assert_failure(&snell(&["render", s(&missing), "-o", s(&dir.join("o.exr"))], &dir));
+    assert!(stderr.contains("cannot read scene file"), "{stderr}");
+    assert!(stderr.contains(s(&missing)), "{stderr}");
+}
+
+#[test]
+fn usage_errors() {
+    let (dir, scene) = setup("usage");
+    let stderr = assert_failure(&snell(&["render"], &dir));
+    assert!(stderr.contains("Usage"), "{stderr}");
+    let stderr = assert_failure(&snell(&["render", s(&scene), "--spp", "many"], &dir));
+    assert!(stderr.contains("--spp"), "{stderr}");
+    let stderr = assert_failure(&snell(&["draw", s(&scene)], &dir));
+    assert!(stderr.contains("draw"), "{stderr}");
+}
+
+#[test]
+fn same_seed_is_bit_identical_across_thread_counts() {
+    let (dir, scene) = setup("determinism");
+    let (one, two, other) = (dir.join("t1.exr"), dir.join("t2.exr"), dir.join("seed.exr"));
+    assert_success(&snell(&["render", s(&scene), "-o", s(&one), "--threads", "1", "--seed", "42", "-q"], &dir));
+    assert_success(&snell(&["render", s(&scene), "-o", s(&two), "--threads", "2", "--seed", "42", "-q"], &dir));
+    let (a, b) = (read_exr(&one), read_exr(&two));
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    let bits = |img: &snell::film::Image| img.pixels.iter().flat_map(|p| (0..3).map(|c| p[c].to_bits()).collect::<Vec<_>>()).collect::<Vec<u32>>();
+    assert!(bits(&a) == bits(&b), "threads 1 and 2 give different images");
+    assert_eq!(std::fs::read(&one).unwrap(), std::fs::read(&two).unwrap(), "the EXR files differ");
+
+    // A different seed gives a different (noisy) image.
+    assert_success(&snell(&["render", s(&scene), "-o", s(&other), "--threads", "2", "--seed", "43", "-q"], &dir));
+    assert!(bits(&a) != bits(&read_exr(&other)), "the seed has no effect");
+}
