@@ -9,37 +9,75 @@
 //! Filters are separable: w(x, y) = w(x)·w(y).
 
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Filter {
+pub enum FilterKind {
     Box,
     Tent { radius: f32 },
     Gaussian { stddev: f32, radius: f32 },
 }
 
-impl Filter {
-    pub fn gaussian(stddev: f32) -> Filter {
-        Filter::Gaussian { stddev, radius: 4.0 * stddev }
-    }
+/// A filter with a lookup table of its values, so splatting a sample costs
+/// no transcendental functions (Mitsuba discretises its filters likewise).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Filter {
+    pub kind: FilterKind,
+    radius: f32,
+    /// Values at |x| = i·radius/(LUT − 1), interpolated linearly.
+    table: Vec<f32>,
+}
 
+const LUT: usize = 256;
+
+impl FilterKind {
     pub fn radius(&self) -> f32 {
         match self {
-            Filter::Box => 0.5,
-            Filter::Tent { radius } => *radius,
-            Filter::Gaussian { radius, .. } => *radius,
+            FilterKind::Box => 0.5,
+            FilterKind::Tent { radius } => *radius,
+            FilterKind::Gaussian { radius, .. } => *radius,
         }
     }
 
-    #[inline]
+    /// The exact filter value at offset `x` (pixels).
     pub fn eval(&self, x: f32) -> f32 {
         match *self {
-            Filter::Box => {
+            FilterKind::Box => {
                 if (-0.5..0.5).contains(&x) { 1.0 } else { 0.0 }
             }
-            Filter::Tent { radius } => (1.0 - x.abs() / radius).max(0.0),
-            Filter::Gaussian { stddev, radius } => {
+            FilterKind::Tent { radius } => (1.0 - x.abs() / radius).max(0.0),
+            FilterKind::Gaussian { stddev, radius } => {
                 let alpha = -1.0 / (2.0 * stddev * stddev);
                 ((alpha * x * x).exp() - (alpha * radius * radius).exp()).max(0.0)
             }
         }
+    }
+}
+
+impl Filter {
+    pub fn new(kind: FilterKind) -> Filter {
+        let radius = kind.radius();
+        let table = (0..LUT).map(|i| kind.eval(radius * i as f32 / (LUT - 1) as f32)).collect();
+        Filter { kind, radius, table }
+    }
+
+    pub fn gaussian(stddev: f32) -> Filter {
+        Filter::new(FilterKind::Gaussian { stddev, radius: 4.0 * stddev })
+    }
+
+    pub fn radius(&self) -> f32 {
+        self.radius
+    }
+
+    #[inline]
+    pub fn eval(&self, x: f32) -> f32 {
+        if let FilterKind::Box = self.kind {
+            return if (-0.5..0.5).contains(&x) { 1.0 } else { 0.0 };
+        }
+        let f = x.abs() / self.radius * (LUT - 1) as f32;
+        if !(f < (LUT - 1) as f32) {
+            return 0.0;
+        }
+        let i = f as usize;
+        let t = f - i as f32;
+        self.table[i] * (1.0 - t) + self.table[i + 1] * t
     }
 }
 
@@ -48,14 +86,25 @@ mod tests {
     use super::*;
 
     #[test]
+    fn table_matches_the_exact_filter() {
+        for f in [Filter::new(FilterKind::Tent { radius: 1.5 }), Filter::gaussian(0.5)] {
+            for i in 0..1000 {
+                let x = -2.5 + 5.0 * i as f32 / 999.0;
+                assert!((f.eval(x) - f.kind.eval(x)).abs() < 2e-4, "{:?} at {x}", f.kind);
+            }
+        }
+    }
+
+    #[test]
     fn filters_vanish_at_their_radius() {
-        for f in [Filter::Tent { radius: 1.5 }, Filter::gaussian(0.5)] {
+        for f in [Filter::new(FilterKind::Tent { radius: 1.5 }), Filter::gaussian(0.5)] {
             assert!(f.eval(0.0) > 0.0);
             assert_eq!(f.eval(f.radius()), 0.0);
             assert_eq!(f.eval(-f.radius() - 0.1), 0.0);
             assert!((f.eval(0.3) - f.eval(-0.3)).abs() < 1e-7);
         }
-        assert_eq!(Filter::Box.eval(0.49), 1.0);
-        assert_eq!(Filter::Box.eval(0.5), 0.0);
+        let b = Filter::new(FilterKind::Box);
+        assert_eq!(b.eval(0.49), 1.0);
+        assert_eq!(b.eval(0.5), 0.0);
     }
 }

@@ -13,7 +13,7 @@
 pub mod filter;
 pub mod output;
 
-pub use filter::Filter;
+pub use filter::{Filter, FilterKind};
 
 use crate::spectrum::Rgb;
 
@@ -44,42 +44,39 @@ impl TileBuffer {
     #[inline]
     pub fn splat(&mut self, filter: &Filter, pos: (f32, f32), value: Rgb) {
         let r = filter.radius();
-        // Pixel i has its centre at i + 0.5.
-        let lo_x = (pos.0 - 0.5 - r).ceil() as i32;
-        let hi_x = (pos.0 - 0.5 + r).floor() as i32;
-        let lo_y = (pos.1 - 0.5 - r).ceil() as i32;
-        let hi_y = (pos.1 - 0.5 + r).floor() as i32;
-        let mut wx = [0.0f32; 16];
-        let nx = ((hi_x - lo_x + 1).max(0) as usize).min(16);
-        for (i, w) in wx.iter_mut().enumerate().take(nx) {
-            *w = filter.eval((lo_x + i as i32) as f32 + 0.5 - pos.0);
+        // Pixel i has its centre at i + 0.5; clamp the footprint to the tile.
+        let x0 = ((pos.0 - 0.5 - r).ceil() as i32).max(self.x0);
+        let x1 = ((pos.0 - 0.5 + r).floor() as i32).min(self.x0 + self.width as i32 - 1);
+        let y0 = ((pos.1 - 0.5 - r).ceil() as i32).max(self.y0);
+        let y1 = ((pos.1 - 0.5 + r).floor() as i32).min(self.y0 + self.height as i32 - 1);
+        if x1 < x0 || y1 < y0 {
+            return;
         }
-        let ny = ((hi_y - lo_y + 1).max(0) as usize).min(16);
+        let (nx, ny) = (((x1 - x0 + 1) as usize).min(MAX_FOOTPRINT), ((y1 - y0 + 1) as usize).min(MAX_FOOTPRINT));
+        let mut wx = [0.0f32; MAX_FOOTPRINT];
+        for (i, w) in wx[..nx].iter_mut().enumerate() {
+            *w = filter.eval((x0 + i as i32) as f32 + 0.5 - pos.0);
+        }
+        let [r0, g0, b0] = value.0;
         for j in 0..ny {
-            let y = lo_y + j as i32 - self.y0;
-            if y < 0 || y >= self.height as i32 {
-                continue;
-            }
-            let wy = filter.eval((lo_y + j as i32) as f32 + 0.5 - pos.1);
+            let wy = filter.eval((y0 + j as i32) as f32 + 0.5 - pos.1);
             if wy == 0.0 {
                 continue;
             }
-            let row = y as usize * self.width;
-            for (i, w) in wx.iter().enumerate().take(nx) {
-                let x = lo_x + i as i32 - self.x0;
-                if x < 0 || x >= self.width as i32 {
-                    continue;
-                }
+            let row = (y0 + j as i32 - self.y0) as usize * self.width + (x0 - self.x0) as usize;
+            for (px, &w) in self.data[row..row + nx].iter_mut().zip(&wx[..nx]) {
                 let w = w * wy;
-                let px = &mut self.data[row + x as usize];
-                px[0] += value[0] * w;
-                px[1] += value[1] * w;
-                px[2] += value[2] * w;
+                px[0] += r0 * w;
+                px[1] += g0 * w;
+                px[2] += b0 * w;
                 px[3] += w;
             }
         }
     }
 }
+
+/// Widest filter footprint in pixels (radius ≤ 4).
+const MAX_FOOTPRINT: usize = 9;
 
 /// The developed image: linear RGB, row-major, top row first.
 #[derive(Clone, Debug)]
@@ -145,14 +142,14 @@ mod tests {
     #[test]
     fn box_filter_splats_into_one_pixel() {
         let mut t = TileBuffer::new(0, 0, 4, 4);
-        t.splat(&Filter::Box, (1.3, 2.9), Rgb::new(1.0, 2.0, 3.0));
+        t.splat(&Filter::new(FilterKind::Box), (1.3, 2.9), Rgb::new(1.0, 2.0, 3.0));
         let nonzero: Vec<usize> = (0..16).filter(|&i| t.data[i][3] > 0.0).collect();
         assert_eq!(nonzero, vec![2 * 4 + 1]);
     }
 
     #[test]
     fn constant_signal_develops_to_itself() {
-        let filter = Filter::Gaussian { stddev: 0.5, radius: 2.0 };
+        let filter = Filter::gaussian(0.5);
         let mut film = Film::new(8, 8);
         let mut tile = TileBuffer::new(-2, -2, 12, 12);
         for j in 0..32 {

@@ -52,7 +52,7 @@ impl Disk {
     pub fn sample_position(&self, u: Vec2) -> PositionSample {
         let d = square_to_uniform_disk_concentric(u);
         let p = self.to_world.point(Vec3::new(d.x, d.y, 0.0));
-        PositionSample { p, n: self.normal, sh_n: self.normal, uv: self.uv_at(p), pdf_area: 1.0 / self.area }
+        PositionSample { p, n: self.normal, sh_n: self.normal, pdf_area: 1.0 / self.area }
     }
 }
 

@@ -19,6 +19,9 @@ pub struct Mesh {
     pub triangles: Vec<[u32; 3]>,
     /// Negate geometric and shading normals (Mitsuba's `flip_normals`).
     pub flip_normals: bool,
+    /// Unit geometric normal per triangle (flip applied), precomputed
+    /// because every hit and every emitter sample needs it.
+    face_normals: Vec<Vec3>,
     area_distribution: DiscreteDistribution,
 }
 
@@ -30,7 +33,6 @@ pub struct PositionSample {
     pub n: Vec3,
     /// Shading normal at `p` (decides which side emits).
     pub sh_n: Vec3,
-    pub uv: Vec2,
     /// Density with respect to surface area.
     pub pdf_area: f32,
 }
@@ -45,7 +47,8 @@ impl Mesh {
         triangles: Vec<[u32; 3]>,
         flip_normals: bool,
     ) -> Mesh {
-        let mut mesh = Mesh { positions, normals, uvs, triangles, flip_normals, area_distribution: Default::default() };
+        let mut mesh =
+            Mesh { positions, normals, uvs, triangles, flip_normals, face_normals: vec![], area_distribution: Default::default() };
         if let Some(ns) = &mut mesh.normals {
             for n in ns.iter_mut() {
                 *n = n.normalize_or_zero();
@@ -54,6 +57,13 @@ impl Mesh {
                 }
             }
         }
+        mesh.face_normals = (0..mesh.triangles.len())
+            .map(|i| {
+                let [a, b, c] = mesh.vertices(i);
+                let n = (b - a).cross(c - a).normalize_or_zero();
+                if flip_normals { -n } else { n }
+            })
+            .collect();
         let areas: Vec<f32> = (0..mesh.triangles.len()).map(|i| mesh.triangle_area(i)).collect();
         mesh.area_distribution = DiscreteDistribution::new(areas);
         mesh
@@ -76,9 +86,7 @@ impl Mesh {
     /// Geometric normal of triangle `i` (orientation from the winding).
     #[inline]
     pub fn face_normal(&self, i: usize) -> Vec3 {
-        let [a, b, c] = self.vertices(i);
-        let n = (b - a).cross(c - a).normalize_or_zero();
-        if self.flip_normals { -n } else { n }
+        self.face_normals[i]
     }
 
     /// Shading normal and uv at barycentrics (b1, b2) of triangle `i`.
@@ -110,22 +118,23 @@ impl Mesh {
         let [a, bb, c] = self.vertices(i);
         let p = a * (1.0 - b.x - b.y) + bb * b.x + c * b.y;
         let n = self.face_normal(i);
-        let (sh_n, uv) = self.shading(i, b.x, b.y, n);
-        Some(PositionSample { p, n, sh_n, uv, pdf_area: 1.0 / self.area() })
+        let sh_n = match self.normals {
+            Some(_) => self.shading(i, b.x, b.y, n).0,
+            None => n,
+        };
+        Some(PositionSample { p, n, sh_n, pdf_area: 1.0 / self.area() })
     }
 
     /// Mitsuba's `rectangle`.
     pub fn rectangle(to_world: &Transform, flip_normals: bool) -> Mesh {
         let local = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0)];
         let uvs = vec![Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 1.0)];
-        let n = to_world.normal(Vec3::Z);
-        Self::from_local_quads(to_world, &local, uvs, vec![n; 4], &[[0, 1, 2, 3]], flip_normals)
+        Self::from_local_quads(to_world, &local, uvs, &[[0, 1, 2, 3]], flip_normals)
     }
 
     /// Mitsuba's `cube`: [-1,1]³, four vertices and one uv square per face.
     pub fn cube(to_world: &Transform, flip_normals: bool) -> Mesh {
         let mut positions = vec![];
-        let mut normals = vec![];
         let mut uvs = vec![];
         let mut quads = vec![];
         for axis in 0..3 {
@@ -143,20 +152,18 @@ impl Mesh {
                 let base = positions.len() as u32;
                 for (du, dv) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
                     positions.push(n + t1 * du + t2 * dv);
-                    normals.push(to_world.normal(n));
                     uvs.push(Vec2::new((du + 1.0) * 0.5, (dv + 1.0) * 0.5));
                 }
                 quads.push([base, base + 1, base + 2, base + 3]);
             }
         }
-        Self::from_local_quads(to_world, &positions, uvs, normals, &quads, flip_normals)
+        Self::from_local_quads(to_world, &positions, uvs, &quads, flip_normals)
     }
 
     fn from_local_quads(
         to_world: &Transform,
         local: &[Vec3],
         uvs: Vec<Vec2>,
-        normals: Vec<Vec3>,
         quads: &[[u32; 4]],
         flip_normals: bool,
     ) -> Mesh {
@@ -175,7 +182,8 @@ impl Mesh {
                 triangles.push([a, c, d]);
             }
         }
-        Mesh::new(positions, Some(normals), Some(uvs), triangles, flip_normals)
+        // Flat faces: the geometric normal is the shading normal.
+        Mesh::new(positions, None, Some(uvs), triangles, flip_normals)
     }
 
     /// Smooth vertex normals weighted by the angle each face makes at the

@@ -93,7 +93,7 @@ impl Shape {
         if cos <= 1e-7 {
             return None;
         }
-        Some(DirectionSample { p: ps.p, n: ps.n, sh_n: ps.sh_n, uv: ps.uv, d, dist, pdf: ps.pdf_area * dist2 / cos })
+        Some(DirectionSample { p: ps.p, n: ps.n, sh_n: ps.sh_n, d, dist, pdf: ps.pdf_area * dist2 / cos })
     }
 
     /// Solid-angle density of `sample_direction` from `p` for the point

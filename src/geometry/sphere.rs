@@ -23,7 +23,6 @@ pub struct DirectionSample {
     pub p: Vec3,
     pub n: Vec3,
     pub sh_n: Vec3,
-    pub uv: Vec2,
     /// Unit direction from the reference point to `p`.
     pub d: Vec3,
     pub dist: f32,
@@ -89,7 +88,7 @@ impl Sphere {
         let local = square_to_uniform_sphere(u);
         let p = self.center + local * self.radius;
         let n = if self.flip_normals { -local } else { local };
-        PositionSample { p, n, sh_n: n, uv: self.uv_at(p), pdf_area: 1.0 / self.area() }
+        PositionSample { p, n, sh_n: n, pdf_area: 1.0 / self.area() }
     }
 
     /// Cosine of the cone's half angle seen from `p`, and 1 − that cosine
@@ -120,7 +119,7 @@ impl Sphere {
                 let t = dc * cos_t - disc.sqrt();
                 let hit = p + d * t;
                 let n = self.normal_at(hit);
-                Some(DirectionSample { p: hit, n, sh_n: n, uv: self.uv_at(hit), d, dist: t, pdf: 1.0 / (2.0 * PI * one_minus) })
+                Some(DirectionSample { p: hit, n, sh_n: n, d, dist: t, pdf: 1.0 / (2.0 * PI * one_minus) })
             }
             None => {
                 let ps = self.sample_position(u);
@@ -135,7 +134,7 @@ impl Sphere {
                 if cos <= 0.0 {
                     return None;
                 }
-                Some(DirectionSample { p: ps.p, n: ps.n, sh_n: ps.n, uv: ps.uv, d, dist, pdf: ps.pdf_area * dist2 / cos })
+                Some(DirectionSample { p: ps.p, n: ps.n, sh_n: ps.n, d, dist, pdf: ps.pdf_area * dist2 / cos })
             }
         }
     }

@@ -9,7 +9,7 @@ use super::xml::{self, Child, ChildTarget, Kind, Node};
 use super::Scene;
 use crate::bsdf::{Bsdf, Diffuse, TwoSided};
 use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, PointLight};
-use crate::film::{FilmSpec, Filter};
+use crate::film::{FilmSpec, Filter, FilterKind};
 use crate::geometry::accel::Accel;
 use crate::geometry::disk::Disk;
 use crate::geometry::mesh::Mesh;
@@ -516,8 +516,8 @@ impl Loader {
     fn rfilter(&self, node: &Arc<Node>) -> Result<Filter> {
         let props = Props::new(node);
         let filter = match node.plugin.as_str() {
-            "box" => Filter::Box,
-            "tent" => Filter::Tent { radius: props.float_checked("radius", 1.0, |r| r > 0.0 && r <= 4.0, "in (0, 4]")? },
+            "box" => Filter::new(FilterKind::Box),
+            "tent" => Filter::new(FilterKind::Tent { radius: props.float_checked("radius", 1.0, |r| r > 0.0 && r <= 4.0, "in (0, 4]")? }),
             "gaussian" => Filter::gaussian(props.float_checked("stddev", 0.5, |s| s > 0.0 && s <= 1.0, "in (0, 1]")?),
             _ => return Err(unknown_plugin(node, &RFILTERS)),
         };
