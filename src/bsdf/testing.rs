@@ -7,7 +7,7 @@ use super::Bsdf;
 use crate::geometry::SurfaceInteraction;
 use crate::math::{Frame, PI, Pcg32};
 use crate::math::sampling::square_to_uniform_sphere;
-use crate::spectrum::{Rgb, Spectrum};
+use crate::spectrum::Rgb;
 use glam::{Vec2, Vec3};
 
 pub fn dummy_interaction() -> SurfaceInteraction {

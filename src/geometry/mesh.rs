@@ -8,6 +8,7 @@
 
 use crate::math::Transform;
 use crate::math::sampling::{DiscreteDistribution, square_to_uniform_triangle};
+use super::sphere::DirectionSample;
 use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]
@@ -35,6 +36,34 @@ pub struct PositionSample {
     pub sh_n: Vec3,
     /// Density with respect to surface area.
     pub pdf_area: f32,
+}
+
+impl PositionSample {
+    /// This point as a direction seen from `p`, its area density converted
+    /// to solid angle by the Jacobian ‖x″ − x′‖² / |cos θ″|.
+    pub fn towards(&self, p: Vec3) -> Option<DirectionSample> {
+        let v = self.p - p;
+        let dist2 = v.length_squared();
+        let dist = dist2.sqrt();
+        if !(dist > 0.0 && dist.is_finite()) {
+            return None;
+        }
+        let d = v / dist;
+        let cos = self.n.dot(d).abs();
+        if cos <= 1e-7 {
+            return None;
+        }
+        Some(DirectionSample { p: self.p, n: self.n, sh_n: self.sh_n, d, dist, pdf: self.pdf_area * dist2 / cos })
+    }
+}
+
+/// Solid-angle density at `p` of a point `hit` (normal `n`) on a surface
+/// sampled uniformly over `area`.
+pub fn area_pdf_to_solid_angle(p: Vec3, hit: Vec3, n: Vec3, area: f32) -> f32 {
+    let v = hit - p;
+    let dist2 = v.length_squared();
+    let cos = n.dot(v).abs() / dist2.sqrt();
+    if cos <= 1e-7 || area <= 0.0 { 0.0 } else { dist2 / (cos * area) }
 }
 
 impl Mesh {

@@ -3,7 +3,7 @@
 
 use super::disk::Disk;
 use super::interaction::SurfaceInteraction;
-use super::mesh::Mesh;
+use super::mesh::{Mesh, area_pdf_to_solid_angle};
 use super::sphere::{DirectionSample, Sphere};
 use crate::math::Frame;
 use glam::{Vec2, Vec3};
@@ -82,18 +82,7 @@ impl Shape {
             ShapeGeometry::Mesh(m) => m.sample_position(u)?,
             ShapeGeometry::Disk(d) => d.sample_position(u),
         };
-        let v = ps.p - p;
-        let dist2 = v.length_squared();
-        let dist = dist2.sqrt();
-        if dist <= 0.0 || !dist.is_finite() {
-            return None;
-        }
-        let d = v / dist;
-        let cos = ps.n.dot(d).abs();
-        if cos <= 1e-7 {
-            return None;
-        }
-        Some(DirectionSample { p: ps.p, n: ps.n, sh_n: ps.sh_n, d, dist, pdf: ps.pdf_area * dist2 / cos })
+        ps.towards(p)
     }
 
     /// Solid-angle density of `sample_direction` from `p` for the point
@@ -102,10 +91,6 @@ impl Shape {
         if let ShapeGeometry::Sphere(s) = &self.geometry {
             return s.pdf_direction(p, hit, n);
         }
-        let v = hit - p;
-        let dist2 = v.length_squared();
-        let cos = n.dot(v).abs() / dist2.sqrt();
-        let area = self.area();
-        if cos <= 1e-7 || area <= 0.0 { 0.0 } else { dist2 / (cos * area) }
+        area_pdf_to_solid_angle(p, hit, n, self.area())
     }
 }

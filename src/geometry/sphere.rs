@@ -3,7 +3,7 @@
 //! the solid angle of the cone it subtends, which has far less variance than
 //! sampling its area.
 
-use super::mesh::PositionSample;
+use super::mesh::{PositionSample, area_pdf_to_solid_angle};
 use crate::math::sampling::{square_to_uniform_cone, square_to_uniform_sphere};
 use crate::math::{Frame, INV_PI, INV_TWO_PI, PI, Transform};
 use glam::{Vec2, Vec3};
@@ -121,21 +121,7 @@ impl Sphere {
                 let n = self.normal_at(hit);
                 Some(DirectionSample { p: hit, n, sh_n: n, d, dist: t, pdf: 1.0 / (2.0 * PI * one_minus) })
             }
-            None => {
-                let ps = self.sample_position(u);
-                let v = ps.p - p;
-                let dist2 = v.length_squared();
-                let dist = dist2.sqrt();
-                if dist <= 0.0 {
-                    return None;
-                }
-                let d = v / dist;
-                let cos = ps.n.dot(d).abs();
-                if cos <= 0.0 {
-                    return None;
-                }
-                Some(DirectionSample { p: ps.p, n: ps.n, sh_n: ps.n, d, dist, pdf: ps.pdf_area * dist2 / cos })
-            }
+            None => self.sample_position(u).towards(p),
         }
     }
 
@@ -143,12 +129,7 @@ impl Sphere {
     pub fn pdf_direction(&self, p: Vec3, hit: Vec3, n: Vec3) -> f32 {
         match self.cone(p) {
             Some((_, one_minus)) => 1.0 / (2.0 * PI * one_minus),
-            None => {
-                let v = hit - p;
-                let dist2 = v.length_squared();
-                let cos = n.dot(v).abs() / dist2.sqrt();
-                if cos <= 0.0 { 0.0 } else { dist2 / (cos * self.area()) }
-            }
+            None => area_pdf_to_solid_angle(p, hit, n, self.area()),
         }
     }
 }

@@ -405,7 +405,7 @@ impl Parser {
                 self.check_attrs(file, x, &["name"])?;
                 Value::Transform(self.parse_transform(file, x)?)
             }
-            _ => unreachable!("parse_property is called only for property tags"),
+            _ => return Err(SceneError::at(&loc, format!("<{tag}> is not a property type"))),
         };
         if !value_is_finite(&value) {
             return Err(SceneError::at(&loc, format!("property \"{name}\" is not finite")));
