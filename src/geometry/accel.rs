@@ -30,6 +30,8 @@ pub struct PrimRef {
 #[derive(Clone, Copy, Debug)]
 pub struct Hit {
     pub t: f32,
+    /// Barycentrics (b1, b2) of a triangle hit; zero for other primitives.
+    pub bary: (f32, f32),
     pub shape: u32,
     pub prim: u32,
 }
@@ -103,30 +105,37 @@ impl Accel {
 
     #[inline(always)]
     fn intersect_prim(&self, slot: usize, o: Vec3A, d: Vec3A, tmax: f32) -> f32 {
+        self.intersect_prim_bary(slot, o, d, tmax).0
+    }
+
+    /// Hit distance (infinite on a miss) and, for triangles, barycentrics.
+    #[inline(always)]
+    fn intersect_prim_bary(&self, slot: usize, o: Vec3A, d: Vec3A, tmax: f32) -> (f32, f32, f32) {
+        const MISS: (f32, f32, f32) = (f32::INFINITY, 0.0, 0.0);
         match &self.geoms[slot] {
             PrimGeom::Triangle { v0, e1, e2 } => {
                 // Möller–Trumbore.
                 let pvec = d.cross(*e2);
                 let det = e1.dot(pvec);
                 if det.abs() < 1e-12 {
-                    return f32::INFINITY;
+                    return MISS;
                 }
                 let inv = 1.0 / det;
                 let tvec = o - *v0;
                 let u = tvec.dot(pvec) * inv;
                 if !(0.0..=1.0).contains(&u) {
-                    return f32::INFINITY;
+                    return MISS;
                 }
                 let qvec = tvec.cross(*e1);
                 let v = d.dot(qvec) * inv;
                 if v < 0.0 || u + v > 1.0 {
-                    return f32::INFINITY;
+                    return MISS;
                 }
                 let t = e2.dot(qvec) * inv;
-                if t > 0.0 && t < tmax { t } else { f32::INFINITY }
+                if t > 0.0 && t < tmax { (t, u, v) } else { MISS }
             }
-            PrimGeom::Sphere { center, radius } => Sphere::intersect(*center, *radius, o.into(), d.into(), tmax),
-            PrimGeom::Disk { to_object } => Disk::intersect(to_object, o.into(), d.into(), tmax),
+            PrimGeom::Sphere { center, radius } => (Sphere::intersect(*center, *radius, o.into(), d.into(), tmax), 0.0, 0.0),
+            PrimGeom::Disk { to_object } => (Disk::intersect(to_object, o.into(), d.into(), tmax), 0.0, 0.0),
         }
     }
 
@@ -136,12 +145,19 @@ impl Accel {
         let bvh = self.bvh.as_ref()?;
         let r = obvhs::ray::Ray::new(ray.o.into(), ray.d.into(), 0.0, ray.tmax);
         let mut hit = obvhs::ray::RayHit::none();
-        let found = bvh.ray_traverse(r, &mut hit, |r, slot| self.intersect_prim(slot, r.origin, r.direction, r.tmax));
+        let mut bary = (0.0, 0.0);
+        let found = bvh.ray_traverse(r, &mut hit, |r, slot| {
+            let (t, b1, b2) = self.intersect_prim_bary(slot, r.origin, r.direction, r.tmax);
+            if t < r.tmax {
+                bary = (b1, b2);
+            }
+            t
+        });
         if !found {
             return None;
         }
         let pref = self.refs[hit.primitive_id as usize];
-        Some(Hit { t: hit.t, shape: pref.shape, prim: pref.prim })
+        Some(Hit { t: hit.t, bary, shape: pref.shape, prim: pref.prim })
     }
 
     /// Whether anything lies on the ray before `ray.tmax`.

@@ -38,21 +38,18 @@ impl Shape {
         }
     }
 
-    /// The full interaction at a hit found by the accelerator.
-    pub fn interaction(&self, shape_index: u32, prim: u32, ray_o: Vec3, ray_d: Vec3, t: f32) -> SurfaceInteraction {
+    /// The full interaction at a hit found by the accelerator, with the
+    /// barycentrics (b1, b2) it reported for a triangle.
+    pub fn interaction(&self, shape_index: u32, prim: u32, ray_o: Vec3, ray_d: Vec3, t: f32, bary: (f32, f32)) -> SurfaceInteraction {
         let (p, n, sh_n, uv) = match &self.geometry {
             ShapeGeometry::Mesh(m) => {
                 let i = prim as usize;
                 let [a, b, c] = m.vertices(i);
                 let e1 = b - a;
                 let e2 = c - a;
-                // Barycentrics again for the one hit that matters (cheaper
-                // than carrying them through traversal).
-                let pvec = ray_d.cross(e2);
-                let inv_det = 1.0 / e1.dot(pvec);
-                let tvec = ray_o - a;
-                let b1 = tvec.dot(pvec) * inv_det;
-                let b2 = ray_d.dot(tvec.cross(e1)) * inv_det;
+                // Barycentrics from the intersection test, inside the
+                // triangle by construction; clamped against rounding.
+                let (b1, b2) = bary;
                 let (b1, b2) = if b1.is_finite() && b2.is_finite() { (b1.clamp(0.0, 1.0), b2.clamp(0.0, 1.0)) } else { (0.0, 0.0) };
                 let p = a + e1 * b1 + e2 * b2;
                 let n = m.face_normal(i);

@@ -45,7 +45,7 @@ impl Scene {
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
         let hit = self.accel.intersect(ray)?;
-        Some(self.shapes[hit.shape as usize].interaction(hit.shape, hit.prim, ray.o, ray.d, hit.t))
+        Some(self.shapes[hit.shape as usize].interaction(hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary))
     }
 
     /// The first hit on a shape that does not emit: Mitsuba's
