@@ -58,6 +58,7 @@ impl TileBuffer {
             *w = filter.eval((x0 + i as i32) as f32 + 0.5 - pos.0);
         }
         let [r0, g0, b0] = value.0;
+        let v = glam::Vec4::new(r0, g0, b0, 1.0);
         for j in 0..ny {
             let wy = filter.eval((y0 + j as i32) as f32 + 0.5 - pos.1);
             if wy == 0.0 {
@@ -65,11 +66,8 @@ impl TileBuffer {
             }
             let row = (y0 + j as i32 - self.y0) as usize * self.width + (x0 - self.x0) as usize;
             for (px, &w) in self.data[row..row + nx].iter_mut().zip(&wx[..nx]) {
-                let w = w * wy;
-                px[0] += r0 * w;
-                px[1] += g0 * w;
-                px[2] += b0 * w;
-                px[3] += w;
+                // (r, g, b, weight) accumulated as one 4-wide multiply-add.
+                *px = (glam::Vec4::from_array(*px) + v * (w * wy)).to_array();
             }
         }
     }
