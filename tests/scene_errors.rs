@@ -130,7 +130,41 @@ fn wrong_root_element_and_missing_version() {
 fn unknown_bsdf_plugin() {
     let e = load_err(&scene("    <bsdf type=\"difuse\"/>\n"));
     assert_error(&e, &scene_path(), 9, 5, "<bsdf type=\"difuse\"", "unknown bsdf plugin \"difuse\"");
-    assert_help(&e, &["diffuse, twosided"]);
+    assert_help(&e, &["conductor, dielectric, diffuse, plastic, thindielectric, twosided"]);
+}
+
+// ------------------------------------------------- specular material inputs
+
+#[test]
+fn unknown_named_ior() {
+    let e = load_err(&scene("    <bsdf type=\"dielectric\">\n        <string name=\"int_ior\" value=\"crystal\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<string name=\"int_ior\"", "unknown index of refraction \"crystal\"");
+    assert_help(&e, &["bk7", "water", "diamond", "crown glass", "fused quartz"]);
+}
+
+#[test]
+fn ior_of_the_wrong_type_or_not_positive() {
+    let e = load_err(&scene("    <bsdf type=\"plastic\">\n        <rgb name=\"ext_ior\" value=\"1, 1, 1\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<rgb name=\"ext_ior\"", "expected float or string");
+    let e = load_err(&scene("    <bsdf type=\"thindielectric\">\n        <float name=\"int_ior\" value=\"-1.5\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<float name=\"int_ior\"", "must be a positive number");
+}
+
+#[test]
+fn unknown_metal_and_conflicting_conductor_inputs() {
+    let e = load_err(&scene("    <bsdf type=\"conductor\">\n        <string name=\"material\" value=\"Gold\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<string name=\"material\"", "unknown conductor material \"Gold\"");
+    assert_help(&e, &["Au", "Ag", "Cu", "none"]);
+    let e = load_err(&scene(
+        "    <bsdf type=\"conductor\">\n        <string name=\"material\" value=\"Au\"/>\n        <float name=\"eta\" value=\"0.2\"/>\n    </bsdf>\n",
+    ));
+    assert_error(&e, &scene_path(), 10, 9, "<string name=\"material\"", "not both");
+}
+
+#[test]
+fn twosided_rejects_transmitting_bsdfs() {
+    let e = load_err(&scene("    <bsdf type=\"twosided\">\n        <bsdf type=\"dielectric\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<bsdf type=\"dielectric\"", "cannot nest a transmitting BSDF");
 }
 
 #[test]
@@ -504,12 +538,12 @@ fn error_inside_an_included_file_points_into_that_file() {
     let dir = temp_dir("include-bad");
     let path = dir.join("scene.xml");
     let part = dir.join("part.xml");
-    std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"plastic\"/>\n</scene>\n").unwrap();
+    std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"roughplastic\"/>\n</scene>\n").unwrap();
     let text = scene("    <include filename=\"part.xml\"/>\n");
     std::fs::write(&path, &text).unwrap();
     let e = snell::load_file(&path, &LoadOptions::default()).err().expect("should fail");
-    assert_error(&e, &part, 2, 5, "<bsdf", "unknown bsdf plugin \"plastic\"");
-    assert_help(&e, &["diffuse, twosided"]);
+    assert_error(&e, &part, 2, 5, "<bsdf", "unknown bsdf plugin \"roughplastic\"");
+    assert_help(&e, &["diffuse, plastic, thindielectric, twosided"]);
 
     // Malformed XML in the included file, too.
     std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"diffuse\">\n</scene>\n").unwrap();

@@ -106,6 +106,6 @@ mod tests {
         let si = dummy_interaction();
         let wi = Vec3::new(0.0, 0.0, -1.0);
         assert!(b.eval::<Rgb>(&si, wi, Vec3::Z, &()).is_zero());
-        assert!(b.sample::<Rgb>(&si, wi, 0.5, Vec2::splat(0.5), &()).is_none());
+        assert!(b.sample::<Rgb>(&si, wi, 0.5, Vec2::splat(0.5), crate::bsdf::TransportMode::Radiance, &()).is_none());
     }
 }

@@ -15,10 +15,21 @@
 //!   refraction); only `sample` produces them, flagged [`Lobe::DELTA`], and
 //!   integrators handle those samples explicitly (no emitter sampling, no MIS).
 
+pub mod conductor;
+pub mod dielectric;
 pub mod diffuse;
+pub mod fresnel;
+pub mod ior;
+pub mod metals;
+pub mod plastic;
+pub mod thindielectric;
 pub mod twosided;
 
+pub use conductor::Conductor;
+pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
+pub use plastic::Plastic;
+pub use thindielectric::ThinDielectric;
 pub use twosided::TwoSided;
 
 use crate::geometry::SurfaceInteraction;
@@ -67,6 +78,10 @@ pub struct BsdfSample<S> {
 #[derive(Clone, Debug)]
 pub enum Bsdf {
     Diffuse(Diffuse),
+    Conductor(Conductor),
+    Dielectric(Dielectric),
+    ThinDielectric(ThinDielectric),
+    Plastic(Plastic),
     TwoSided(TwoSided),
 }
 
@@ -74,6 +89,9 @@ impl Bsdf {
     pub fn lobes(&self) -> Lobe {
         match self {
             Bsdf::Diffuse(_) => Lobe::DIFFUSE_REFLECTION,
+            Bsdf::Conductor(_) => Lobe::DELTA_REFLECTION,
+            Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => Lobe::DELTA,
+            Bsdf::Plastic(_) => Lobe::DELTA_REFLECTION | Lobe::DIFFUSE_REFLECTION,
             Bsdf::TwoSided(t) => t.lobes(),
         }
     }
@@ -82,6 +100,8 @@ impl Bsdf {
     pub fn eval<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
         match self {
             Bsdf::Diffuse(d) => d.eval(si, wi, wo, wl),
+            Bsdf::Plastic(p) => p.eval(si, wi, wo, wl),
+            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => S::zero(),
             Bsdf::TwoSided(t) => t.eval(si, wi, wo, wl),
         }
     }
@@ -90,16 +110,31 @@ impl Bsdf {
     pub fn pdf(&self, si: &SurfaceInteraction, wi: Vec3, wo: Vec3) -> f32 {
         match self {
             Bsdf::Diffuse(d) => d.pdf(wi, wo),
+            Bsdf::Plastic(p) => p.pdf(wi, wo),
+            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => 0.0,
             Bsdf::TwoSided(t) => t.pdf(si, wi, wo),
         }
     }
 
-    /// `u1` picks a lobe, `u2` samples the direction within it.
+    /// `u1` picks a lobe, `u2` samples the direction within it; `mode` says
+    /// whether the path carries radiance (camera paths) or importance.
     #[inline]
-    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+    pub fn sample<S: Spectrum>(
+        &self,
+        si: &SurfaceInteraction,
+        wi: Vec3,
+        u1: f32,
+        u2: Vec2,
+        mode: TransportMode,
+        wl: &S::Wavelengths,
+    ) -> Option<BsdfSample<S>> {
         match self {
             Bsdf::Diffuse(d) => d.sample(si, wi, u2, wl),
-            Bsdf::TwoSided(t) => t.sample(si, wi, u1, u2, wl),
+            Bsdf::Conductor(c) => c.sample(si, wi, wl),
+            Bsdf::Dielectric(d) => d.sample(si, wi, u1, mode, wl),
+            Bsdf::ThinDielectric(d) => d.sample(si, wi, u1, wl),
+            Bsdf::Plastic(p) => p.sample(si, wi, u1, u2, wl),
+            Bsdf::TwoSided(t) => t.sample(si, wi, u1, u2, mode, wl),
         }
     }
 }

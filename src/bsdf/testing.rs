@@ -7,7 +7,7 @@ use super::Bsdf;
 use crate::geometry::SurfaceInteraction;
 use crate::math::{Frame, PI, Pcg32};
 use crate::math::sampling::square_to_uniform_sphere;
-use crate::spectrum::Rgb;
+use crate::spectrum::{Rgb, Spectrum};
 use glam::{Vec2, Vec3};
 
 pub fn dummy_interaction() -> SurfaceInteraction {
@@ -116,7 +116,7 @@ pub fn chi2_test(bsdf: &Bsdf, wi: Vec3, seed: u64) {
     let mut observed = vec![0.0f64; THETA * PHI];
     let mut valid = 0usize;
     for _ in 0..N {
-        let s: Option<super::BsdfSample<Rgb>> = bsdf.sample(&si, wi, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()), &());
+        let s: Option<super::BsdfSample<Rgb>> = bsdf.sample(&si, wi, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()), super::TransportMode::Radiance, &());
         if let Some(s) = s {
             if s.lobe.intersects(super::Lobe::DELTA) {
                 continue;
@@ -223,11 +223,18 @@ pub fn check_sample_consistency(bsdf: &Bsdf, wi: Vec3, seed: u64) {
     let si = SurfaceInteraction { wi, ..dummy_interaction() };
     let mut rng = Pcg32::new(seed, 11);
     for _ in 0..5000 {
-        let Some(s) = bsdf.sample::<Rgb>(&si, wi, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()), &()) else {
+        let Some(s) = bsdf.sample::<Rgb>(&si, wi, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()), super::TransportMode::Radiance, &()) else {
             continue;
         };
         if s.lobe.intersects(super::Lobe::DELTA) {
-            assert_eq!(bsdf.pdf(&si, wi, s.wo), 0.0, "pdf must be zero on a delta lobe");
+            // A delta lobe adds nothing to eval/pdf: for a purely specular BSDF
+            // both vanish at the sampled direction (a mixed one, like plastic,
+            // keeps its smooth lobes there).
+            if !bsdf.lobes().intersects(super::Lobe::SMOOTH) {
+                assert_eq!(bsdf.pdf(&si, wi, s.wo), 0.0, "pdf must be zero on a delta lobe");
+                assert!(bsdf.eval::<Rgb>(&si, wi, s.wo, &()).is_zero(), "eval must be zero on a delta lobe");
+            }
+            assert!(s.weight.is_finite() && s.pdf > 0.0);
             continue;
         }
         let pdf = bsdf.pdf(&si, wi, s.wo);

@@ -10,7 +10,7 @@
 //! </bsdf>
 //! ```
 
-use super::{Bsdf, BsdfSample, Lobe};
+use super::{Bsdf, BsdfSample, Lobe, TransportMode};
 use crate::geometry::SurfaceInteraction;
 use crate::spectrum::Spectrum;
 use glam::{Vec2, Vec3};
@@ -42,11 +42,11 @@ impl TwoSided {
     }
 
     #[inline]
-    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, mode: TransportMode, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
         if wi.z >= 0.0 {
-            self.front.sample(si, wi, u1, u2, wl)
+            self.front.sample(si, wi, u1, u2, mode, wl)
         } else {
-            let mut s = self.back.sample(si, flip(wi), u1, u2, wl)?;
+            let mut s = self.back.sample(si, flip(wi), u1, u2, mode, wl)?;
             s.wo = flip(s.wo);
             Some(s)
         }

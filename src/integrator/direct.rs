@@ -26,7 +26,7 @@
 //! <integrator type="direct"><integer name="emitter_samples" value="4"/></integrator>
 //! ```
 
-use crate::bsdf::Lobe;
+use crate::bsdf::{Lobe, TransportMode};
 use crate::geometry::Ray;
 use crate::math::mis_power;
 use crate::sampler::Sampler;
@@ -79,7 +79,7 @@ impl Direct {
         }
 
         for _ in 0..self.bsdf_samples {
-            let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { continue };
+            let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), TransportMode::Radiance, wl) else { continue };
             let d = si.to_world(bs.wo);
             let ray = Ray::new(si.spawn_origin(d), d);
             let delta = bs.lobe.intersects(Lobe::DELTA);

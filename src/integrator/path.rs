@@ -18,7 +18,7 @@
 //! <integrator type="path"><integer name="max_depth" value="8"/></integrator>
 //! ```
 
-use crate::bsdf::Lobe;
+use crate::bsdf::{Lobe, TransportMode};
 use crate::geometry::Ray;
 use crate::math::mis_power;
 use crate::sampler::Sampler;
@@ -80,7 +80,7 @@ impl PathTracer {
             }
 
             // Continue the path by sampling the BSDF.
-            let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
+            let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), TransportMode::Radiance, wl) else { break };
             let d = si.to_world(bs.wo);
             throughput *= bs.weight;
             eta *= bs.eta;

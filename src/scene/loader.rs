@@ -7,7 +7,7 @@ use super::error::{Result, SceneError};
 use super::props::Props;
 use super::xml::{self, Child, ChildTarget, Kind, Node};
 use super::Scene;
-use crate::bsdf::{Bsdf, Diffuse, TwoSided};
+use crate::bsdf::{Bsdf, Conductor, Lobe, Dielectric, Diffuse, Plastic, ThinDielectric, TwoSided};
 use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, PointLight};
 use crate::film::{FilmSpec, Filter, FilterKind};
 use crate::geometry::accel::Accel;
@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub const SHAPES: [&str; 6] = ["rectangle", "cube", "disk", "sphere", "obj", "ply"];
-pub const BSDFS: [&str; 2] = ["diffuse", "twosided"];
+pub const BSDFS: [&str; 6] = ["conductor", "dielectric", "diffuse", "plastic", "thindielectric", "twosided"];
 pub const TEXTURES: [&str; 2] = ["bitmap", "checkerboard"];
 pub const EMITTERS: [&str; 4] = ["area", "point", "constant", "directional"];
 pub const SENSORS: [&str; 2] = ["perspective", "orthographic"];
@@ -90,6 +90,11 @@ fn resolve_path(node: &Node, name: &str) -> PathBuf {
     let p = Path::new(name);
     if p.is_absolute() { p.to_path_buf() } else { node.loc.file.path.parent().unwrap_or(Path::new(".")).join(p) }
 }
+
+/// Default indices of refraction (Mitsuba's defaults by name).
+const BK7: f32 = 1.5046;
+const AIR: f32 = 1.000_277;
+const POLYPROPYLENE: f32 = 1.49;
 
 fn unknown_plugin(node: &Node, choices: &[&str]) -> SceneError {
     SceneError::at(&node.loc, format!("unknown {} plugin \"{}\"", node.kind.tag(), node.plugin)).with_choices(choices)
@@ -314,6 +319,31 @@ impl Loader {
         let props = Props::new(node);
         let bsdf = match node.plugin.as_str() {
             "diffuse" => Bsdf::Diffuse(Diffuse { reflectance: self.texture_input(&props, "reflectance", Rgb::new(0.5, 0.5, 0.5))? }),
+            "conductor" => self.conductor(node, &props)?,
+            "dielectric" | "thindielectric" => {
+                let int_ior = props.ior("int_ior", BK7)?;
+                let ext_ior = props.ior("ext_ior", AIR)?;
+                let specular_reflectance = self.texture_input(&props, "specular_reflectance", Rgb::WHITE)?;
+                let specular_transmittance = self.texture_input(&props, "specular_transmittance", Rgb::WHITE)?;
+                let eta = int_ior / ext_ior;
+                if node.plugin == "dielectric" {
+                    Bsdf::Dielectric(Dielectric { eta, specular_reflectance, specular_transmittance })
+                } else {
+                    Bsdf::ThinDielectric(ThinDielectric { eta, specular_reflectance, specular_transmittance })
+                }
+            }
+            "plastic" => {
+                let int_ior = props.ior("int_ior", POLYPROPYLENE)?;
+                let ext_ior = props.ior("ext_ior", AIR)?;
+                let diffuse = self.texture_input(&props, "diffuse_reflectance", Rgb::new(0.5, 0.5, 0.5))?;
+                let specular = if props.has("specular_reflectance") || props.has_child("specular_reflectance") {
+                    Some(self.texture_input(&props, "specular_reflectance", Rgb::WHITE)?)
+                } else {
+                    None
+                };
+                let nonlinear = props.bool("nonlinear", false)?;
+                Bsdf::Plastic(Plastic::new(diffuse, specular, int_ior / ext_ior, nonlinear))
+            }
             "twosided" => {
                 let mut nested = self.nested(&props, Kind::Bsdf)?;
                 for r in props.unnamed_refs() {
@@ -332,6 +362,9 @@ impl Loader {
                     if let Bsdf::TwoSided(_) = b {
                         return Err(SceneError::at(&n.loc, "twosided cannot nest another twosided"));
                     }
+                    if b.lobes().intersects(Lobe::DIFFUSE_TRANSMISSION | Lobe::GLOSSY_TRANSMISSION | Lobe::DELTA_TRANSMISSION) {
+                        return Err(SceneError::at(&n.loc, format!("twosided cannot nest a transmitting BSDF (\"{}\"); it already scatters on both sides", n.plugin)));
+                    }
                     sides.push(b);
                 }
                 let front = sides.remove(0);
@@ -342,6 +375,32 @@ impl Loader {
         };
         props.finish()?;
         Ok(bsdf)
+    }
+
+    /// `conductor`: η and k given directly, or a named metal (or `none`).
+    fn conductor(&self, node: &Arc<Node>, props: &Props) -> Result<Bsdf> {
+        let specular_reflectance = self.texture_input(props, "specular_reflectance", Rgb::WHITE)?;
+        let material = props.string_opt("material")?;
+        let given = props.has("eta") || props.has("k");
+        let (eta, k) = match material {
+            Some(name) if name != "none" => {
+                let loc = node.props.iter().find(|p| p.name == "material").map_or(&node.loc, |p| &p.loc);
+                if given {
+                    return Err(SceneError::at(loc, "give either \"material\" or \"eta\"/\"k\", not both"));
+                }
+                let metal = crate::bsdf::metals::METALS.iter().find(|m| m.name == name).ok_or_else(|| {
+                    let mut names: Vec<&str> = crate::bsdf::metals::METALS.iter().map(|m| m.name).collect();
+                    names.push("none");
+                    SceneError::at(loc, format!("unknown conductor material \"{name}\"")).with_choices(&names)
+                })?;
+                (Rgb(metal.eta), Rgb(metal.k))
+            }
+            _ => (props.color("eta", Rgb::BLACK)?, props.color("k", Rgb::WHITE)?),
+        };
+        if !(eta.is_finite() && k.is_finite() && eta.0.iter().chain(&k.0).all(|&v| v >= 0.0)) {
+            return Err(SceneError::at(&node.loc, "conductor \"eta\" and \"k\" must be finite and not negative"));
+        }
+        Ok(Bsdf::Conductor(Conductor { eta, k, specular_reflectance }))
     }
 
     /// A colour parameter: `rgb`/`spectrum`/`float`, or a nested (or referenced) texture.

@@ -38,6 +38,11 @@ impl<'a> Props<'a> {
         self.node.props.iter().any(|p| p.name == name)
     }
 
+    /// Whether a nested object (or reference) is called `name`.
+    pub fn has_child(&self, name: &str) -> bool {
+        self.node.children.iter().any(|c| c.name.as_deref() == Some(name))
+    }
+
     fn type_error(&self, i: usize, expected: &str) -> SceneError {
         let p = &self.node.props[i];
         SceneError::at(
@@ -138,6 +143,28 @@ impl<'a> Props<'a> {
         if !choices.contains(&v) {
             let loc = self.node.props.iter().find(|p| p.name == name).map_or(&self.node.loc, |p| &p.loc);
             return Err(SceneError::at(loc, format!("\"{v}\" is not a valid value of \"{name}\"")).with_choices(choices));
+        }
+        Ok(v)
+    }
+
+    /// An index of refraction given as a positive number or a name from
+    /// [`crate::bsdf::ior`] (Mitsuba's `lookup_ior`); `default` if absent.
+    pub fn ior(&self, name: &str, default: f32) -> Result<f32> {
+        let Some((i, value)) = self.find(name) else { return Ok(default) };
+        let loc = &self.node.props[i].loc;
+        let v = match value {
+            Value::Float(f) => *f as f32,
+            Value::Integer(v) => *v as f32,
+            Value::String(s) => {
+                return crate::bsdf::ior::lookup_ior(s).ok_or_else(|| {
+                    SceneError::at(loc, format!("unknown index of refraction \"{s}\" for \"{name}\" (give a number or a name)"))
+                        .with_choices(&crate::bsdf::ior::ior_names())
+                });
+            }
+            _ => return Err(self.type_error(i, "float or string")),
+        };
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(SceneError::at(loc, format!("index of refraction \"{name}\" must be a positive number, not {v}")));
         }
         Ok(v)
     }

@@ -39,6 +39,11 @@ pub trait Spectrum:
     fn from_reflectance(rgb: Rgb, wavelengths: &Self::Wavelengths) -> Self;
     /// An emission input (radiance, intensity, irradiance) as this spectrum.
     fn from_illuminant(rgb: Rgb, wavelengths: &Self::Wavelengths) -> Self;
+    /// An unbounded per-channel quantity that is not a colour (e.g. a
+    /// conductor's η and k) as this spectrum.
+    fn from_unbounded(rgb: Rgb, wavelengths: &Self::Wavelengths) -> Self;
+    /// Applies `f` channel by channel to `self` and `other`.
+    fn zip_map(self, other: Self, f: impl Fn(f32, f32) -> f32) -> Self;
     /// The film's linear RGB value of this path's radiance estimate.
     fn to_rgb(&self, wavelengths: &Self::Wavelengths) -> Rgb;
     fn max_component(&self) -> f32;

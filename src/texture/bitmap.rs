@@ -126,6 +126,12 @@ impl Bitmap {
     pub fn max_value(&self) -> f32 {
         self.texels.iter().flat_map(|t| t.0).fold(0.0, f32::max)
     }
+
+    /// Mean over all texels and channels.
+    pub fn mean(&self) -> f32 {
+        let sum: f64 = self.texels.iter().map(|t| t.mean() as f64).sum();
+        (sum / self.texels.len().max(1) as f64) as f32
+    }
 }
 
 #[cfg(test)]

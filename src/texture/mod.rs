@@ -31,6 +31,16 @@ impl Texture {
         }
     }
 
+    /// The mean value over uv space and channels (Mitsuba's `Texture::mean`;
+    /// `plastic` steers its lobe choice by it).
+    pub fn mean(&self) -> f32 {
+        match self {
+            Texture::Constant(c) => c.mean(),
+            Texture::Bitmap(b) => b.mean(),
+            Texture::Checkerboard(c) => 0.5 * (c.color0.mean() + c.color1.mean()),
+        }
+    }
+
     /// The largest value the texture takes (for energy checks).
     pub fn max_value(&self) -> f32 {
         match self {

@@ -1,0 +1,162 @@
+//! `dielectric` — a smooth interface between two dielectrics (glass, water):
+//! ideal specular reflection plus ideal specular refraction by Snell's law.
+//!
+//! The exact unpolarised Fresnel reflectance F_r (see `fresnel.rs`) splits
+//! the light: F_r is reflected into the mirror direction, 1 − F_r refracted
+//! into ω_t with η₁ sin θ₁ = η₂ sin θ₂, and beyond the critical angle
+//! everything is reflected (total internal reflection). `sample` picks
+//! reflection with probability F_r and refraction otherwise, so both
+//! samples carry weight 1 (times the optional scale textures).
+//!
+//! Radiance is not conserved across the interface — L/η² is. A camera path
+//! that refracts from the side of index η_i (where it came from) into η_t
+//! carries radiance scaled by (η_i/η_t)², the seed's η₁²/η₂² BTDF factor
+//! with light travelling from medium t to medium i. Importance (light-tracing
+//! paths, `TransportMode::Importance`) is not scaled.
+//!
+//! `eta` = int_ior / ext_ior; the normal points outside. Both sides refract,
+//! so the surface of a closed object is the boundary of a solid of glass.
+//! Both lobes are deltas: `eval` and `pdf` are zero.
+//!
+//! | parameter | type | default | meaning |
+//! |---|---|---|---|
+//! | `int_ior` | float / string | `bk7` (1.5046) | interior index, or a name (`water`, `diamond`, `crown glass`, …) |
+//! | `ext_ior` | float / string | `air` (1.000277) | exterior index, or a name |
+//! | `specular_reflectance` | rgb / spectrum / float / texture | 1 | scale of reflection (not physical) |
+//! | `specular_transmittance` | rgb / spectrum / float / texture | 1 | scale of transmission (not physical) |
+//!
+//! ```xml
+//! <bsdf type="dielectric">
+//!     <string name="int_ior" value="water"/>
+//!     <float name="ext_ior" value="1.0"/>
+//! </bsdf>
+//! ```
+
+use super::fresnel::{fresnel_dielectric, reflect, refract};
+use super::{BsdfSample, Lobe, TransportMode};
+use crate::geometry::SurfaceInteraction;
+use crate::spectrum::Spectrum;
+use crate::texture::Texture;
+use glam::Vec3;
+
+#[derive(Clone, Debug)]
+pub struct Dielectric {
+    /// int_ior / ext_ior.
+    pub eta: f32,
+    pub specular_reflectance: Texture,
+    pub specular_transmittance: Texture,
+}
+
+impl Dielectric {
+    #[inline]
+    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, u: f32, mode: TransportMode, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+        let f = fresnel_dielectric(wi.z, self.eta);
+        if u < f.r {
+            Some(BsdfSample {
+                wo: reflect(wi),
+                weight: S::from_reflectance(self.specular_reflectance.eval(si.uv), wl),
+                pdf: f.r,
+                eta: 1.0,
+                lobe: Lobe::DELTA_REFLECTION,
+            })
+        } else {
+            let scale = match mode {
+                TransportMode::Radiance => f.eta_ti * f.eta_ti,
+                TransportMode::Importance => 1.0,
+            };
+            Some(BsdfSample {
+                wo: refract(wi, f.cos_t, f.eta_ti),
+                weight: S::from_reflectance(self.specular_transmittance.eval(si.uv), wl) * scale,
+                pdf: 1.0 - f.r,
+                eta: f.eta_it,
+                lobe: Lobe::DELTA_TRANSMISSION,
+            })
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::Bsdf;
+    use crate::bsdf::testing::*;
+    use crate::spectrum::Rgb;
+    use glam::Vec2;
+
+    fn glass(eta: f32) -> Bsdf {
+        Bsdf::Dielectric(Dielectric {
+            eta,
+            specular_reflectance: Texture::Constant(Rgb::WHITE),
+            specular_transmittance: Texture::Constant(Rgb::WHITE),
+        })
+    }
+
+    #[test]
+    fn reflects_with_probability_fresnel() {
+        let b = glass(1.5);
+        let si = dummy_interaction();
+        for theta in [0.0f32, 0.7, 1.3] {
+            let wi = incident(theta, 0.4);
+            let f = fresnel_dielectric(wi.z, 1.5);
+            let n = 100_000;
+            let mut reflected = 0;
+            let mut rng = crate::math::Pcg32::new(9, theta.to_bits() as u64);
+            for _ in 0..n {
+                let s = b.sample::<Rgb>(&si, wi, rng.next_f32(), Vec2::ZERO, TransportMode::Radiance, &()).expect("always scatters");
+                match s.lobe {
+                    Lobe::DELTA_REFLECTION => {
+                        reflected += 1;
+                        assert!((s.weight[0] - 1.0).abs() < 1e-6 && (s.pdf - f.r).abs() < 1e-6);
+                    }
+                    Lobe::DELTA_TRANSMISSION => {
+                        // η_i/η_t squared: entering glass from air divides radiance by 1.5².
+                        assert!((s.weight[0] - 1.0 / (1.5 * 1.5)).abs() < 1e-5);
+                        assert!((s.eta - 1.5).abs() < 1e-6 && s.wo.z < 0.0);
+                    }
+                    other => panic!("unexpected lobe {other:?}"),
+                }
+            }
+            let frac = reflected as f32 / n as f32;
+            let sigma = (f.r * (1.0 - f.r) / n as f32).sqrt();
+            assert!((frac - f.r).abs() < 5.0 * sigma + 1e-4, "θ={theta}: reflected {frac} vs F={}", f.r);
+        }
+    }
+
+    #[test]
+    fn importance_transport_is_not_scaled() {
+        let b = glass(1.5);
+        let si = dummy_interaction();
+        let s = b.sample::<Rgb>(&si, Vec3::Z, 0.99, Vec2::ZERO, TransportMode::Importance, &()).expect("scatters");
+        assert_eq!(s.lobe, Lobe::DELTA_TRANSMISSION);
+        assert!((s.weight[0] - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn total_internal_reflection_inside() {
+        let b = glass(1.5);
+        let si = dummy_interaction();
+        // 60° inside glass is past the critical angle 41.8°: every sample reflects.
+        let wi = Vec3::new((60f32).to_radians().sin(), 0.0, -(60f32).to_radians().cos());
+        for u in [0.0f32, 0.5, 0.999_999] {
+            let s = b.sample::<Rgb>(&si, wi, u, Vec2::ZERO, TransportMode::Radiance, &()).expect("scatters");
+            assert_eq!(s.lobe, Lobe::DELTA_REFLECTION);
+            assert!(s.wo.z < 0.0 && (s.weight[0] - 1.0).abs() < 1e-6);
+        }
+        // Leaving the glass at normal incidence multiplies radiance by 1.5².
+        let s = b.sample::<Rgb>(&si, -Vec3::Z, 0.99, Vec2::ZERO, TransportMode::Radiance, &()).expect("scatters");
+        assert!((s.weight[0] - 2.25).abs() < 1e-5 && (s.eta - 1.0 / 1.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn eval_and_pdf_vanish() {
+        let b = glass(1.33);
+        let si = dummy_interaction();
+        check_sample_consistency(&b, incident(0.5, 0.1), 4);
+        let wi = incident(0.5, 0.1);
+        let f = fresnel_dielectric(wi.z, 1.33);
+        for wo in [reflect(wi), refract(wi, f.cos_t, f.eta_ti)] {
+            assert!(b.eval::<Rgb>(&si, wi, wo, &()).is_zero());
+            assert_eq!(b.pdf(&si, wi, wo), 0.0);
+        }
+    }
+}
