@@ -272,3 +272,44 @@ fn snells_window_has_the_critical_angle_radius_and_the_eta_squared_brightness() 
     assert!((centre - expected_centre).abs() < 0.01, "centre {centre} vs {expected_centre}");
     assert!(centre > 1.7, "the η² factor is missing: centre {centre}");
 }
+
+#[test]
+fn an_emitter_seen_in_a_mirror_counts_once() {
+    // Looking straight down through a hidden area light at a metal mirror:
+    // where the mirrored ray meets the light the pixel is F(0) · L_e, else 0.
+    // No emitter sampling happens at the delta vertex and the emitter hit
+    // after it is counted in full, in `direct` and in `path` alike. The
+    // light's edges lie on pixel edges, so every pixel is exact.
+    let (eta, k) = ([1.5f32, 0.9, 0.4], [3.0f32, 2.6, 2.2]);
+    for integrator in ["direct", "path"] {
+        let text = format!(
+            r#"<scene version="3.0.0">
+            <integrator type="{integrator}"><boolean name="hide_emitters" value="true"/></integrator>
+            <sensor type="orthographic">
+                <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+                <sampler type="independent"><integer name="sample_count" value="16"/></sampler>
+                <film type="hdrfilm"><integer name="width" value="32"/><integer name="height" value="32"/><rfilter type="box"/></film>
+            </sensor>
+            <shape type="rectangle">
+                <transform name="to_world"><scale value="2"/></transform>
+                <bsdf type="conductor"><rgb name="eta" value="1.5, 0.9, 0.4"/><rgb name="k" value="3.0, 2.6, 2.2"/></bsdf>
+            </shape>
+            <shape type="rectangle">
+                <transform name="to_world"><scale x="0.375" y="0.25" z="1"/><rotate x="1" angle="180"/><translate x="0.125" z="1"/></transform>
+                <emitter type="area"><rgb name="radiance" value="2"/></emitter>
+            </shape>
+        </scene>"#
+        );
+        let path = Path::new("mirror-light.xml");
+        let expected = expected_image(path, &text, 4, |ray| {
+            let p = ray.o + ray.d * (-ray.o.z / ray.d.z);
+            if (p.x - 0.125).abs() <= 0.375 && p.y.abs() <= 0.25 {
+                Rgb::new(fresnel_conductor(1.0, eta[0], k[0]), fresnel_conductor(1.0, eta[1], k[1]), fresnel_conductor(1.0, eta[2], k[2])) * 2.0
+            } else {
+                Rgb::BLACK
+            }
+        });
+        let passes = render_passes(path, Some(&text), Default::default(), 8, 4);
+        compare(&passes, &expected, 4, 0.0).assert_unbiased(&format!("light in a mirror ({integrator})"), 0.005);
+    }
+}
