@@ -1,19 +1,25 @@
-//! The acceleration structure: one compressed wide BVH (obvhs' CWBVH, 8-wide
-//! with SIMD node tests) over every primitive of every shape. Primitive data
-//! are stored in the BVH's leaf order so traversal reads them contiguously.
+//! The acceleration structure: an 8-wide BVH over every primitive of every
+//! shape. It is built as a binary SAH BVH (`accel/build.rs`) and collapsed
+//! to nodes that keep their eight child boxes in SoA form, so one SIMD slab
+//! test (`accel/simd.rs`: AVX2 on x86-64-v3, plain arrays elsewhere) checks
+//! all of them. Leaves hold triangles in SoA packets of eight, tested at
+//! once by a SIMD Möller–Trumbore; spheres and disks are tested one by one.
+
+mod build;
+mod simd;
 
 use super::disk::Disk;
 use super::shape::{Shape, ShapeGeometry};
 use super::sphere::Sphere;
 use super::Ray;
 use crate::math::Transform;
+use build::{Aabb, PACKET};
 use glam::{Vec3, Vec3A};
-use obvhs::aabb::Aabb;
-use obvhs::cwbvh::CwBvh;
-use obvhs::{Boundable, BvhBuildParams};
-use std::time::Duration;
+use simd::F8;
+use std::mem::MaybeUninit;
 
-/// Intersection data of one primitive, as compact as traversal wants it.
+/// Intersection data of one primitive (scalar form: non-triangles in
+/// leaves, and the reference for tests).
 #[derive(Clone, Debug)]
 enum PrimGeom {
     Triangle { v0: Vec3A, e1: Vec3A, e2: Vec3A },
@@ -36,42 +42,220 @@ pub struct Hit {
     pub prim: u32,
 }
 
-pub struct Accel {
-    bvh: Option<CwBvh>,
-    geoms: Vec<PrimGeom>,
-    refs: Vec<PrimRef>,
+/// Children per node.
+const WIDTH: usize = 8;
+
+/// Eight child boxes in SoA form: `b[0..3]` the minima on x, y, z, `b[3..6]`
+/// the maxima. Empty slots have an inverted (+∞, −∞) box.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    b: [F8; 6],
+    /// A node index, or `LEAF | leaf index`.
+    children: [u32; WIDTH],
 }
 
-struct Bounded(Aabb);
+const LEAF: u32 = 1 << 31;
 
-impl Boundable for Bounded {
-    fn aabb(&self) -> Aabb {
-        self.0
-    }
+
+/// A leaf: `packets[tri_start..tri_end]`, then `others[other_start..other_end]`.
+#[derive(Clone, Copy, Debug)]
+struct Leaf {
+    tri_start: u32,
+    tri_end: u32,
+    other_start: u32,
+    other_end: u32,
+}
+
+/// `PACKET` triangles as v0, e1 = v1 − v0, e2 = v2 − v0, one SIMD lane
+/// each. Unused lanes are degenerate (zero edges), which the test rejects.
+#[derive(Clone, Copy, Debug)]
+struct TriPacket {
+    v0: [F8; 3],
+    e1: [F8; 3],
+    e2: [F8; 3],
+}
+
+/// Leaves hold at most this many primitives.
+const MAX_LEAF: usize = PACKET;
+/// Traversal stack capacity; the build bounds tree depth well below it.
+const STACK: usize = 256;
+
+pub struct Accel {
+    /// Root first; empty when there is nothing to hit.
+    nodes: Vec<Node>,
+    leaves: Vec<Leaf>,
+    packets: Vec<TriPacket>,
+    packet_refs: Vec<[PrimRef; PACKET]>,
+    others: Vec<PrimGeom>,
+    other_refs: Vec<PrimRef>,
 }
 
 fn prim_geom(shape: &Shape, prim: usize) -> (PrimGeom, Aabb) {
     match &shape.geometry {
         ShapeGeometry::Mesh(m) => {
             let [a, b, c] = m.vertices(prim);
-            let mut aabb = Aabb::empty();
-            aabb.extend(a.into()).extend(b.into()).extend(c.into());
-            (PrimGeom::Triangle { v0: a.into(), e1: (b - a).into(), e2: (c - a).into() }, aabb)
+            let (a, b, c) = (Vec3A::from(a), Vec3A::from(b), Vec3A::from(c));
+            let aabb = Aabb { lo: a.min(b).min(c), hi: a.max(b).max(c) };
+            (PrimGeom::Triangle { v0: a, e1: b - a, e2: c - a }, aabb)
         }
         ShapeGeometry::Sphere(s) => {
             let r = Vec3A::splat(s.radius);
             let c: Vec3A = s.center.into();
-            (PrimGeom::Sphere { center: s.center, radius: s.radius }, Aabb::new(c - r, c + r))
+            (PrimGeom::Sphere { center: s.center, radius: s.radius }, Aabb { lo: c - r, hi: c + r })
         }
         ShapeGeometry::Disk(d) => {
-            let mut aabb = Aabb::empty();
+            let mut aabb = Aabb::EMPTY;
             // The disk lies inside the transformed square [-1,1]² × {0}.
             for (x, y) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                aabb.extend(d.to_world.point(Vec3::new(x, y, 0.0)).into());
+                aabb = aabb.grow(d.to_world.point(Vec3::new(x, y, 0.0)).into());
             }
             let to_object = Transform { matrix: d.to_world.inverse, inverse: d.to_world.matrix };
             (PrimGeom::Disk { to_object: Box::new(to_object) }, aabb)
         }
+    }
+}
+
+/// Hit distance (infinite on a miss) and, for triangles, barycentrics.
+#[inline(always)]
+fn intersect_prim_bary(g: &PrimGeom, o: Vec3A, d: Vec3A, tmax: f32) -> (f32, f32, f32) {
+    const MISS: (f32, f32, f32) = (f32::INFINITY, 0.0, 0.0);
+    match g {
+        PrimGeom::Triangle { v0, e1, e2 } => {
+            // Möller–Trumbore.
+            let pvec = d.cross(*e2);
+            let det = e1.dot(pvec);
+            if det.abs() < 1e-12 {
+                return MISS;
+            }
+            let inv = 1.0 / det;
+            let tvec = o - *v0;
+            let u = tvec.dot(pvec) * inv;
+            if !(0.0..=1.0).contains(&u) {
+                return MISS;
+            }
+            let qvec = tvec.cross(*e1);
+            let v = d.dot(qvec) * inv;
+            if v < 0.0 || u + v > 1.0 {
+                return MISS;
+            }
+            let t = e2.dot(qvec) * inv;
+            if t > 0.0 && t < tmax { (t, u, v) } else { MISS }
+        }
+        PrimGeom::Sphere { center, radius } => (Sphere::intersect(*center, *radius, o.into(), d.into(), tmax), 0.0, 0.0),
+        PrimGeom::Disk { to_object } => (Disk::intersect(to_object, o.into(), d.into(), tmax), 0.0, 0.0),
+    }
+}
+
+/// Per-ray constants of the SIMD tests.
+struct RayData {
+    o: Vec3A,
+    d: Vec3A,
+    /// Splatted origin and direction, for the triangle packets.
+    o8: [F8; 3],
+    d8: [F8; 3],
+    /// Slab test: entry distance on an axis is `plane · inv_n − oinv_n`,
+    /// exit distance `plane · inv_f − oinv_f` (one FMA each). The inverse
+    /// direction has zero components replaced by tiny ones (no NaN), and
+    /// the near and far constants are biased by bounds on the rounding
+    /// error (of 1/d, of o·(1/d) and of the FMA), so that the test is
+    /// conservative: it never loses a box the exact ray enters.
+    inv_n: [F8; 3],
+    oinv_n: [F8; 3],
+    inv_f: [F8; 3],
+    oinv_f: [F8; 3],
+    /// Index into `Node::b` of the near and far plane on each axis.
+    near: [usize; 3],
+    far: [usize; 3],
+}
+
+impl RayData {
+    #[inline(always)]
+    fn new(ray: &Ray) -> RayData {
+        let o = Vec3A::from(ray.o);
+        let d = Vec3A::from(ray.d);
+        let tiny = Vec3A::splat(1e-20);
+        let d_safe = Vec3A::select(d.abs().cmplt(tiny), tiny.copysign(d), d);
+        let inv = Vec3A::ONE / d_safe;
+        const REL: f32 = 4.0 * f32::EPSILON; // 2⁻²¹
+        let inv_n = inv * (1.0 - REL);
+        let inv_f = inv * (1.0 + REL);
+        let err = (o * inv).abs() * REL;
+        let oinv_n = o * inv_n + err;
+        let oinv_f = o * inv_f - err;
+        let near = [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0];
+        let s = |v: Vec3A| [F8::splat(v.x), F8::splat(v.y), F8::splat(v.z)];
+        RayData {
+            o,
+            d,
+            o8: s(o),
+            d8: s(d),
+            inv_n: s(inv_n),
+            oinv_n: s(oinv_n),
+            inv_f: s(inv_f),
+            oinv_f: s(oinv_f),
+            near: [near[0] as usize * 3, 1 + near[1] as usize * 3, 2 + near[2] as usize * 3],
+            far: [3 - near[0] as usize * 3, 4 - near[1] as usize * 3, 5 - near[2] as usize * 3],
+        }
+    }
+
+    /// Entry distances into the children and the mask of those the ray
+    /// enters within [0, tmax].
+    #[inline(always)]
+    fn slab(&self, node: &Node, tmax: f32) -> (F8, u32) {
+        // SAFETY: `near` and `far` hold indices in 0..6 by construction.
+        let (nx, ny, nz, fx, fy, fz) = unsafe {
+            (
+                *node.b.get_unchecked(self.near[0]),
+                *node.b.get_unchecked(self.near[1]),
+                *node.b.get_unchecked(self.near[2]),
+                *node.b.get_unchecked(self.far[0]),
+                *node.b.get_unchecked(self.far[1]),
+                *node.b.get_unchecked(self.far[2]),
+            )
+        };
+        let tnx = nx.mul_sub(self.inv_n[0], self.oinv_n[0]);
+        let tny = ny.mul_sub(self.inv_n[1], self.oinv_n[1]);
+        let tnz = nz.mul_sub(self.inv_n[2], self.oinv_n[2]);
+        let tfx = fx.mul_sub(self.inv_f[0], self.oinv_f[0]);
+        let tfy = fy.mul_sub(self.inv_f[1], self.oinv_f[1]);
+        let tfz = fz.mul_sub(self.inv_f[2], self.oinv_f[2]);
+        let tnear = tnx.max(tny).max(tnz.max(F8::splat(0.0)));
+        let tfar = tfx.min(tfy).min(tfz.min(F8::splat(tmax)));
+        (tnear, tnear.le(tfar).bitmask())
+    }
+
+    /// Möller–Trumbore on a packet: hit distances (only meaningful in the
+    /// mask's lanes), barycentrics, and the mask of hits in (0, tmax).
+    #[inline(always)]
+    fn triangles(&self, p: &TriPacket, tmax: f32) -> (F8, F8, F8, u32) {
+        let [dx, dy, dz] = self.d8;
+        let [e1x, e1y, e1z] = p.e1;
+        let [e2x, e2y, e2z] = p.e2;
+        // pvec = d × e2
+        let px = dy.mul_sub(e2z, dz * e2y);
+        let py = dz.mul_sub(e2x, dx * e2z);
+        let pz = dx.mul_sub(e2y, dy * e2x);
+        let det = e1x.mul_add(px, e1y.mul_add(py, e1z * pz));
+        // tvec = o − v0
+        let tx = self.o8[0] - p.v0[0];
+        let ty = self.o8[1] - p.v0[1];
+        let tz = self.o8[2] - p.v0[2];
+        // qvec = tvec × e1
+        let qx = ty.mul_sub(e1z, tz * e1y);
+        let qy = tz.mul_sub(e1x, tx * e1z);
+        let qz = tx.mul_sub(e1y, ty * e1x);
+        let inv = F8::splat(1.0) / det;
+        let u = tx.mul_add(px, ty.mul_add(py, tz * pz)) * inv;
+        let v = dx.mul_add(qx, dy.mul_add(qy, dz * qz)) * inv;
+        let t = e2x.mul_add(qx, e2y.mul_add(qy, e2z * qz)) * inv;
+        let zero = F8::splat(0.0);
+        let ok = F8::splat(1e-12).le(det.abs())
+            & zero.le(u)
+            & zero.le(v)
+            & (u + v).le(F8::splat(1.0))
+            & zero.lt(t)
+            & t.lt(F8::splat(tmax));
+        (t, u, v, ok.bitmask())
     }
 }
 
@@ -82,90 +266,167 @@ impl Accel {
         let mut boxes = vec![];
         for (si, shape) in shapes.iter().enumerate() {
             for p in 0..shape.primitive_count() {
-                let (g, mut aabb) = prim_geom(shape, p);
+                let (g, aabb) = prim_geom(shape, p);
                 // Flat primitives have zero-thickness boxes; pad them so the
                 // slab test never rejects a hit on an axis-aligned face.
-                let pad = Vec3A::splat(1e-6) * (1.0 + aabb.max.abs().max(aabb.min.abs()).max_element());
-                aabb.min -= pad;
-                aabb.max += pad;
+                let pad = Vec3A::splat(1e-6) * (1.0 + aabb.hi.abs().max(aabb.lo.abs()).max_element());
                 geoms.push(g);
                 refs.push(PrimRef { shape: si as u32, prim: p as u32 });
-                boxes.push(Bounded(aabb));
+                boxes.push(Aabb { lo: aabb.lo - pad, hi: aabb.hi + pad });
             }
         }
+        let mut accel =
+            Accel { nodes: vec![], leaves: vec![], packets: vec![], packet_refs: vec![], others: vec![], other_refs: vec![] };
         if boxes.is_empty() {
-            return Accel { bvh: None, geoms, refs };
+            return accel;
         }
-        let bvh = obvhs::cwbvh::builder::build_cwbvh(&boxes, BvhBuildParams::medium_build(), &mut Duration::default());
-        let order = &bvh.primitive_indices;
-        let geoms = order.iter().map(|&i| geoms[i as usize].clone()).collect();
-        let refs = order.iter().map(|&i| refs[i as usize]).collect();
-        Accel { bvh: Some(bvh), geoms, refs }
-    }
-
-    #[inline(always)]
-    fn intersect_prim(&self, slot: usize, o: Vec3A, d: Vec3A, tmax: f32) -> f32 {
-        self.intersect_prim_bary(slot, o, d, tmax).0
-    }
-
-    /// Hit distance (infinite on a miss) and, for triangles, barycentrics.
-    #[inline(always)]
-    fn intersect_prim_bary(&self, slot: usize, o: Vec3A, d: Vec3A, tmax: f32) -> (f32, f32, f32) {
-        const MISS: (f32, f32, f32) = (f32::INFINITY, 0.0, 0.0);
-        match &self.geoms[slot] {
-            PrimGeom::Triangle { v0, e1, e2 } => {
-                // Möller–Trumbore.
-                let pvec = d.cross(*e2);
-                let det = e1.dot(pvec);
-                if det.abs() < 1e-12 {
-                    return MISS;
-                }
-                let inv = 1.0 / det;
-                let tvec = o - *v0;
-                let u = tvec.dot(pvec) * inv;
-                if !(0.0..=1.0).contains(&u) {
-                    return MISS;
-                }
-                let qvec = tvec.cross(*e1);
-                let v = d.dot(qvec) * inv;
-                if v < 0.0 || u + v > 1.0 {
-                    return MISS;
-                }
-                let t = e2.dot(qvec) * inv;
-                if t > 0.0 && t < tmax { (t, u, v) } else { MISS }
-            }
-            PrimGeom::Sphere { center, radius } => (Sphere::intersect(*center, *radius, o.into(), d.into(), tmax), 0.0, 0.0),
-            PrimGeom::Disk { to_object } => (Disk::intersect(to_object, o.into(), d.into(), tmax), 0.0, 0.0),
-        }
+        let is_tri: Vec<bool> = geoms.iter().map(|g| matches!(g, PrimGeom::Triangle { .. })).collect();
+        let bvh2 = build::build(&boxes, &is_tri, MAX_LEAF);
+        let mut c = Collapse { bvh2: &bvh2, geoms: &geoms, refs: &refs, accel: &mut accel, max_depth: 0 };
+        c.node(0, 1);
+        assert!((WIDTH as u32 - 1) * c.max_depth + 1 < STACK as u32, "BVH too deep for the traversal stack");
+        accel
     }
 
     /// The closest hit along the ray before `ray.tmax`.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let bvh = self.bvh.as_ref()?;
-        let r = obvhs::ray::Ray::new(ray.o.into(), ray.d.into(), 0.0, ray.tmax);
-        let mut hit = obvhs::ray::RayHit::none();
-        let mut bary = (0.0, 0.0);
-        let found = bvh.ray_traverse(r, &mut hit, |r, slot| {
-            let (t, b1, b2) = self.intersect_prim_bary(slot, r.origin, r.direction, r.tmax);
-            if t < r.tmax {
-                bary = (b1, b2);
-            }
-            t
-        });
-        if !found {
+        if self.nodes.is_empty() {
             return None;
         }
-        let pref = self.refs[hit.primitive_id as usize];
-        Some(Hit { t: hit.t, bary, shape: pref.shape, prim: pref.prim })
+        let r = RayData::new(ray);
+        let mut tmax = ray.tmax;
+        let mut found: Option<(PrimRef, f32, f32)> = None;
+        // Entries: entry distance bits (non-negative floats order like
+        // their bits) above the child code, so they sort as integers.
+        let mut stack: [MaybeUninit<u64>; STACK] = [MaybeUninit::uninit(); STACK];
+        let mut sp = 0usize;
+        let mut cur = 0u32;
+        loop {
+            if cur & LEAF == 0 {
+                let node = &self.nodes[cur as usize];
+                let (tnear, mask) = r.slab(node, tmax);
+                if mask != 0 {
+                    let rest = mask & (mask - 1);
+                    if rest == 0 {
+                        cur = node.children[mask.trailing_zeros() as usize];
+                        continue;
+                    }
+                    // Two or more: go to the nearest, push the others far
+                    // to near so the nearest remaining pops first.
+                    let t = tnear.to_array();
+                    let mut keys = [0u64; WIDTH];
+                    let mut k = 0;
+                    let mut m = mask;
+                    while m != 0 {
+                        let i = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        let key = (t[i].to_bits() as u64) << 32 | node.children[i] as u64;
+                        // Insertion sort, descending.
+                        let mut j = k;
+                        while j > 0 && keys[j - 1] < key {
+                            keys[j] = keys[j - 1];
+                            j -= 1;
+                        }
+                        keys[j] = key;
+                        k += 1;
+                    }
+                    for &key in &keys[..k - 1] {
+                        stack[sp].write(key);
+                        sp += 1;
+                    }
+                    cur = keys[k - 1] as u32;
+                    continue;
+                }
+            } else {
+                let leaf = &self.leaves[(cur & !LEAF) as usize];
+                for pi in leaf.tri_start..leaf.tri_end {
+                    let (t, u, v, mut mask) = r.triangles(&self.packets[pi as usize], tmax);
+                    if mask != 0 {
+                        let t = t.to_array();
+                        let mut lane = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        while mask != 0 {
+                            let i = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            if t[i] < t[lane] {
+                                lane = i;
+                            }
+                        }
+                        tmax = t[lane];
+                        found = Some((self.packet_refs[pi as usize][lane], u.to_array()[lane], v.to_array()[lane]));
+                    }
+                }
+                for oi in leaf.other_start..leaf.other_end {
+                    let (t, _, _) = intersect_prim_bary(&self.others[oi as usize], r.o, r.d, tmax);
+                    if t < tmax {
+                        tmax = t;
+                        found = Some((self.other_refs[oi as usize], 0.0, 0.0));
+                    }
+                }
+            }
+            // Pop the nearest pending node still in reach.
+            loop {
+                if sp == 0 {
+                    let (pref, b1, b2) = found?;
+                    return Some(Hit { t: tmax, bary: (b1, b2), shape: pref.shape, prim: pref.prim });
+                }
+                sp -= 1;
+                // SAFETY: entries below `sp` were written before.
+                let key = unsafe { stack[sp].assume_init() };
+                if f32::from_bits((key >> 32) as u32) <= tmax {
+                    cur = key as u32;
+                    break;
+                }
+            }
+        }
     }
 
     /// Whether anything lies on the ray before `ray.tmax`.
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
-        let Some(bvh) = self.bvh.as_ref() else { return false };
-        let r = obvhs::ray::Ray::new(ray.o.into(), ray.d.into(), 0.0, ray.tmax);
-        !bvh.ray_traverse_miss(r, |r, slot| self.intersect_prim(slot, r.origin, r.direction, r.tmax))
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let r = RayData::new(ray);
+        let tmax = ray.tmax;
+        let mut stack: [MaybeUninit<u32>; STACK] = [MaybeUninit::uninit(); STACK];
+        let mut sp = 0usize;
+        let mut cur = 0u32;
+        loop {
+            if cur & LEAF == 0 {
+                let node = &self.nodes[cur as usize];
+                let (_, mut mask) = r.slab(node, tmax);
+                if mask != 0 {
+                    cur = node.children[mask.trailing_zeros() as usize];
+                    mask &= mask - 1;
+                    while mask != 0 {
+                        stack[sp].write(node.children[mask.trailing_zeros() as usize]);
+                        sp += 1;
+                        mask &= mask - 1;
+                    }
+                    continue;
+                }
+            } else {
+                let leaf = &self.leaves[(cur & !LEAF) as usize];
+                for pi in leaf.tri_start..leaf.tri_end {
+                    if r.triangles(&self.packets[pi as usize], tmax).3 != 0 {
+                        return true;
+                    }
+                }
+                for oi in leaf.other_start..leaf.other_end {
+                    if intersect_prim_bary(&self.others[oi as usize], r.o, r.d, tmax).0 < tmax {
+                        return true;
+                    }
+                }
+            }
+            if sp == 0 {
+                return false;
+            }
+            sp -= 1;
+            // SAFETY: entries below `sp` were written before.
+            cur = unsafe { stack[sp].assume_init() };
+        }
     }
 
     /// Bounding box of everything (min, max); a unit box around the origin when empty.
@@ -175,11 +436,94 @@ impl Accel {
         for s in shapes {
             for p in 0..s.primitive_count() {
                 let (_, b) = prim_geom(s, p);
-                lo = lo.min(b.min.into());
-                hi = hi.max(b.max.into());
+                lo = lo.min(b.lo.into());
+                hi = hi.max(b.hi.into());
             }
         }
         if lo.x > hi.x { (Vec3::splat(-1.0), Vec3::splat(1.0)) } else { (lo, hi) }
+    }
+}
+
+/// Collapses the binary BVH into `Accel`'s wide one.
+struct Collapse<'a> {
+    bvh2: &'a build::Bvh2,
+    geoms: &'a [PrimGeom],
+    refs: &'a [PrimRef],
+    accel: &'a mut Accel,
+    max_depth: u32,
+}
+
+impl Collapse<'_> {
+    /// Emits the leaf of BVH2 node `n2`; returns its child code.
+    fn leaf(&mut self, n2: usize) -> u32 {
+        let build::Node2::Leaf { start, count, .. } = self.bvh2.nodes[n2] else { unreachable!() };
+        let a = &mut *self.accel;
+        let items = &self.bvh2.order[start as usize..(start + count) as usize];
+        let tri_start = a.packets.len() as u32;
+        let other_start = a.others.len() as u32;
+        let tris: Vec<usize> = items.iter().map(|&i| i as usize).filter(|&i| matches!(self.geoms[i], PrimGeom::Triangle { .. })).collect();
+        for chunk in tris.chunks(PACKET) {
+            // Unused lanes stay degenerate (all zero).
+            let mut f = [[[0.0f32; PACKET]; 3]; 3];
+            let mut r = [self.refs[chunk[0]]; PACKET];
+            for (lane, &i) in chunk.iter().enumerate() {
+                let PrimGeom::Triangle { v0, e1, e2 } = &self.geoms[i] else { unreachable!() };
+                for k in 0..3 {
+                    f[0][k][lane] = v0[k];
+                    f[1][k][lane] = e1[k];
+                    f[2][k][lane] = e2[k];
+                }
+                r[lane] = self.refs[i];
+            }
+            let v = |a: [[f32; PACKET]; 3]| a.map(F8::from_array);
+            a.packets.push(TriPacket { v0: v(f[0]), e1: v(f[1]), e2: v(f[2]) });
+            a.packet_refs.push(r);
+        }
+        for &i in items {
+            let g = &self.geoms[i as usize];
+            if !matches!(g, PrimGeom::Triangle { .. }) {
+                a.others.push(g.clone());
+                a.other_refs.push(self.refs[i as usize]);
+            }
+        }
+        a.leaves.push(Leaf { tri_start, tri_end: a.packets.len() as u32, other_start, other_end: a.others.len() as u32 });
+        LEAF | (a.leaves.len() as u32 - 1)
+    }
+
+    /// Emits a wide node for BVH2 node `n2` (a root that is a leaf gets a
+    /// node with that one child); returns its index.
+    fn node(&mut self, n2: usize, depth: u32) -> u32 {
+        self.max_depth = self.max_depth.max(depth);
+        let id = self.accel.nodes.len();
+        let (inf, ninf) = (F8::splat(f32::INFINITY), F8::splat(f32::NEG_INFINITY));
+        self.accel.nodes.push(Node { b: [inf, inf, inf, ninf, ninf, ninf], children: [0; WIDTH] });
+        let is_inner = |k: usize| matches!(self.bvh2.nodes[k], build::Node2::Inner { .. });
+        // Open the largest inner child until the node is full.
+        let mut kids = vec![n2];
+        while kids.len() < WIDTH {
+            let best = (0..kids.len())
+                .filter(|&i| is_inner(kids[i]))
+                .max_by(|&a, &b| self.bvh2.nodes[kids[a]].bounds().half_area().total_cmp(&self.bvh2.nodes[kids[b]].bounds().half_area()));
+            let Some(i) = best else { break };
+            let build::Node2::Inner { left, right, .. } = self.bvh2.nodes[kids[i]] else { unreachable!() };
+            kids[i] = left as usize;
+            kids.push(right as usize);
+        }
+        let mut bounds = [[0.0f32; WIDTH]; 6];
+        for (slot, row) in bounds.iter_mut().enumerate() {
+            *row = [if slot < 3 { f32::INFINITY } else { f32::NEG_INFINITY }; WIDTH];
+        }
+        let mut children = [0u32; WIDTH];
+        for (slot, &k) in kids.iter().enumerate() {
+            children[slot] = if is_inner(k) { self.node(k, depth + 1) } else { self.leaf(k) };
+            let b = self.bvh2.nodes[k].bounds();
+            for a in 0..3 {
+                bounds[a][slot] = b.lo[a];
+                bounds[a + 3][slot] = b.hi[a];
+            }
+        }
+        self.accel.nodes[id] = Node { b: bounds.map(F8::from_array), children };
+        id as u32
     }
 }
 
@@ -191,16 +535,71 @@ mod tests {
     use crate::math::sampling::square_to_uniform_sphere;
     use glam::{Mat4, Vec2};
 
-    fn brute_force(shapes: &[Shape], ray: &Ray) -> f32 {
-        let mut best = f32::INFINITY;
-        for s in shapes {
+    /// Closest hit by testing every primitive: (t, shape, prim, b1, b2).
+    fn brute_force(shapes: &[Shape], ray: &Ray) -> Option<(f32, u32, u32, f32, f32)> {
+        let mut best = None;
+        let mut tmax = ray.tmax;
+        for (si, s) in shapes.iter().enumerate() {
             for p in 0..s.primitive_count() {
                 let (g, _) = prim_geom(s, p);
-                let a = Accel { bvh: None, geoms: vec![g], refs: vec![] };
-                best = best.min(a.intersect_prim(0, ray.o.into(), ray.d.into(), ray.tmax));
+                let (t, u, v) = intersect_prim_bary(&g, ray.o.into(), ray.d.into(), tmax);
+                if t < tmax {
+                    tmax = t;
+                    best = Some((t, si as u32, p as u32, u, v));
+                }
             }
         }
         best
+    }
+
+    /// t of primitive (shape, prim) along the ray, infinite on a miss.
+    fn prim_t(shapes: &[Shape], shape: u32, prim: u32, ray: &Ray) -> f32 {
+        let (g, _) = prim_geom(&shapes[shape as usize], prim as usize);
+        intersect_prim_bary(&g, ray.o.into(), ray.d.into(), ray.tmax).0
+    }
+
+    fn shape(geometry: ShapeGeometry) -> Shape {
+        Shape { geometry, bsdf: 0, emitter: None }
+    }
+
+    /// Checks closest hits and occlusion of `n` random rays against brute
+    /// force; returns how many rays hit something.
+    fn check(shapes: &[Shape], n: usize, seed: u64, lo: Vec3, hi: Vec3) -> usize {
+        let accel = Accel::build(shapes);
+        let mut rng = Pcg32::new(seed, 7);
+        let mut hits = 0;
+        for i in 0..n {
+            let o = lo + (hi - lo) * Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let mut d = square_to_uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
+            if i % 7 == 0 {
+                // Axis-parallel directions stress the slab test.
+                d = [Vec3::X, -Vec3::Y, Vec3::Z, Vec3::new(1.0, 1.0, 0.0).normalize()][i % 4];
+            }
+            let tmax = if i % 3 == 0 { rng.next_f32() * 5.0 } else { f32::INFINITY };
+            let ray = Ray { o, d, tmax };
+            let expected = brute_force(shapes, &ray);
+            let got = accel.intersect(&ray);
+            match (expected, got) {
+                (None, None) => {}
+                (Some((t, s, p, b1, b2)), Some(h)) => {
+                    hits += 1;
+                    assert!((h.t - t).abs() <= 1e-5 * t.max(1.0), "ray {i}: t {} vs brute force {t}", h.t);
+                    if (h.shape, h.prim) == (s, p) {
+                        assert!((h.bary.0 - b1).abs() < 1e-4 && (h.bary.1 - b2).abs() < 1e-4, "ray {i}: barycentrics {:?} vs {:?}", h.bary, (b1, b2));
+                    } else {
+                        // A tie (a shared edge): the reported primitive must be hit at the same t.
+                        let t2 = prim_t(shapes, h.shape, h.prim, &ray);
+                        assert!((t2 - t).abs() <= 1e-5 * t.max(1.0), "ray {i}: other primitive ({}, {}) at {t2} vs {t}", h.shape, h.prim);
+                    }
+                }
+                (e, g) => panic!("ray {i}: brute force {e:?}, accel {g:?}"),
+            }
+            assert_eq!(accel.occluded(&ray), expected.is_some(), "ray {i}: occlusion");
+            if let Some((t, ..)) = expected {
+                assert!(!accel.occluded(&Ray { tmax: t * 0.999, ..ray }) || brute_force(shapes, &Ray { tmax: t * 0.999, ..ray }).is_some());
+            }
+        }
+        hits
     }
 
     #[test]
@@ -215,26 +614,77 @@ mod tests {
                 1 => ShapeGeometry::Sphere(Sphere { center: t.point(Vec3::ZERO), radius: 0.3, to_object: Transform::IDENTITY, flip_normals: false }),
                 _ => ShapeGeometry::Disk(Disk::new(t, false)),
             };
-            shapes.push(Shape { geometry, bsdf: 0, emitter: None });
+            shapes.push(shape(geometry));
         }
-        let accel = Accel::build(&shapes);
-        let mut rng = Pcg32::new(9, 9);
-        let mut hits = 0;
-        for _ in 0..5000 {
-            let o = Vec3::new(rng.next_f32() * 8.0 - 4.0, rng.next_f32() * 4.0 - 1.0, rng.next_f32() * 6.0 - 3.0);
-            let d = square_to_uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
-            let ray = Ray::new(o, d);
-            let expected = brute_force(&shapes, &ray);
-            let got = accel.intersect(&ray).map_or(f32::INFINITY, |h| h.t);
-            if expected.is_finite() {
-                hits += 1;
-                assert!((expected - got).abs() < 1e-4 * (1.0 + expected), "{expected} vs {got}");
-                assert!(accel.occluded(&Ray { tmax: expected * 1.001, ..ray }));
-            } else {
-                assert!(got.is_infinite());
-                assert!(!accel.occluded(&ray));
+        let hits = check(&shapes, 5000, 9, Vec3::new(-4.0, -1.0, -3.0), Vec3::new(4.0, 3.0, 3.0));
+        assert!(hits > 500, "the test should exercise hits ({hits})");
+    }
+
+    #[test]
+    fn random_soup_with_spheres_and_disks() {
+        let mut rng = Pcg32::new(3, 1);
+        let mut r3 = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let mut positions = vec![];
+        let mut triangles = vec![];
+        for i in 0..300u32 {
+            let c = r3() * 4.0 - 2.0;
+            for _ in 0..3 {
+                positions.push(c + (r3() - 0.5) * 0.6);
+            }
+            triangles.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        let mut shapes = vec![shape(ShapeGeometry::Mesh(Mesh::new(positions, None, None, triangles, false)))];
+        for _ in 0..10 {
+            let c = r3() * 4.0 - 2.0;
+            let radius = 0.05 + r3().x * 0.3;
+            shapes.push(shape(ShapeGeometry::Sphere(Sphere { center: c, radius, to_object: Transform::IDENTITY, flip_normals: false })));
+            let t = Transform::from_matrix(Mat4::from_translation(r3() * 4.0 - 2.0) * Mat4::from_rotation_x(r3().x * 6.0) * Mat4::from_scale(Vec3::splat(0.3))).unwrap();
+            shapes.push(shape(ShapeGeometry::Disk(Disk::new(t, false))));
+        }
+        let hits = check(&shapes, 20000, 5, Vec3::splat(-3.0), Vec3::splat(3.0));
+        assert!(hits > 1000, "{hits}");
+    }
+
+    /// A closed, bumpy sphere of a few thousand triangles (shared edges and
+    /// vertices), seen from inside and outside.
+    #[test]
+    fn big_mesh() {
+        let (nu, nv) = (80, 40);
+        let mut positions = vec![];
+        for j in 0..=nv {
+            for i in 0..nu {
+                let (th, ph) = (std::f32::consts::PI * j as f32 / nv as f32, std::f32::consts::TAU * i as f32 / nu as f32);
+                let r = 1.0 + 0.1 * (5.0 * ph).sin() * (3.0 * th).sin();
+                positions.push(Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()) * r + Vec3::new(10.0, -5.0, 3.0));
             }
         }
-        assert!(hits > 500, "the test should exercise hits ({hits})");
+        let mut triangles = vec![];
+        for j in 0..nv as u32 {
+            for i in 0..nu as u32 {
+                let a = j * nu as u32 + i;
+                let b = j * nu as u32 + (i + 1) % nu as u32;
+                triangles.push([a, b, b + nu as u32]);
+                triangles.push([a, b + nu as u32, a + nu as u32]);
+            }
+        }
+        assert!(triangles.len() >= 6000);
+        let shapes = vec![shape(ShapeGeometry::Mesh(Mesh::new(positions, None, None, triangles, false)))];
+        let c = Vec3::new(10.0, -5.0, 3.0);
+        let hits = check(&shapes, 5000, 11, c - Vec3::splat(0.8), c + Vec3::splat(0.8));
+        assert!(hits > 3000, "{hits}");
+        check(&shapes, 5000, 12, c - Vec3::splat(3.0), c + Vec3::splat(3.0));
+    }
+
+    #[test]
+    fn empty_and_single() {
+        let accel = Accel::build(&[]);
+        assert!(accel.intersect(&Ray::new(Vec3::ZERO, Vec3::X)).is_none());
+        assert!(!accel.occluded(&Ray::new(Vec3::ZERO, Vec3::X)));
+        let shapes = vec![shape(ShapeGeometry::Sphere(Sphere { center: Vec3::new(3.0, 0.0, 0.0), radius: 1.0, to_object: Transform::IDENTITY, flip_normals: false }))];
+        let accel = Accel::build(&shapes);
+        let h = accel.intersect(&Ray::new(Vec3::ZERO, Vec3::X)).unwrap();
+        assert!((h.t - 2.0).abs() < 1e-6);
+        assert!(accel.occluded(&Ray::new(Vec3::ZERO, Vec3::X)));
+        assert!(!accel.occluded(&Ray { tmax: 1.9, ..Ray::new(Vec3::ZERO, Vec3::X) }));
     }
 }

@@ -1,0 +1,240 @@
+//! Binary BVH construction by the surface area heuristic: an exact sweep
+//! over sorted centroids for small nodes, binning for large ones. The result
+//! is collapsed into the 8-wide BVH that traversal uses (see `accel.rs`).
+
+use glam::Vec3A;
+
+/// Relative cost of one BVH2 node visit, against one leaf "unit" (a packet
+/// of up to `PACKET` triangles, or one other primitive).
+const COST_TRAVERSE: f32 = 1.0;
+const COST_UNIT: f32 = 1.0;
+/// Nodes at most this size use the exact SAH sweep.
+const SWEEP_MAX: usize = 128;
+const BINS: usize = 32;
+/// Past this depth, nodes split at the object median: depth stays bounded
+/// (and with it the traversal stack) whatever the input.
+const MAX_SAH_DEPTH: u32 = 48;
+
+#[derive(Clone, Copy, Debug)]
+pub struct Aabb {
+    pub lo: Vec3A,
+    pub hi: Vec3A,
+}
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb { lo: Vec3A::splat(f32::INFINITY), hi: Vec3A::splat(f32::NEG_INFINITY) };
+
+    #[inline]
+    pub fn union(self, o: Aabb) -> Aabb {
+        Aabb { lo: self.lo.min(o.lo), hi: self.hi.max(o.hi) }
+    }
+
+    #[inline]
+    pub fn grow(self, p: Vec3A) -> Aabb {
+        Aabb { lo: self.lo.min(p), hi: self.hi.max(p) }
+    }
+
+    /// Half the surface area (the SAH only needs ratios); zero when empty.
+    #[inline]
+    pub fn half_area(self) -> f32 {
+        let d = (self.hi - self.lo).max(Vec3A::ZERO);
+        d.x * d.y + d.y * d.z + d.z * d.x
+    }
+
+    #[inline]
+    pub fn centroid(self) -> Vec3A {
+        (self.lo + self.hi) * 0.5
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+pub enum Node2 {
+    Inner { bounds: Aabb, left: u32, right: u32 },
+    Leaf { bounds: Aabb, start: u32, count: u32 },
+}
+
+impl Node2 {
+    pub fn bounds(&self) -> Aabb {
+        match *self {
+            Node2::Inner { bounds, .. } | Node2::Leaf { bounds, .. } => bounds,
+        }
+    }
+}
+
+pub struct Bvh2 {
+    /// Root first.
+    pub nodes: Vec<Node2>,
+    /// Primitive indices in leaf order; leaves index ranges of this.
+    pub order: Vec<u32>,
+}
+
+#[derive(Clone, Copy)]
+struct Item {
+    bounds: Aabb,
+    centroid: Vec3A,
+    index: u32,
+    tri: bool,
+}
+
+/// Triangles per SIMD test.
+pub const PACKET: usize = 8;
+
+/// Leaf cost of `tris` triangles (tested `PACKET` at a time) and `others` other primitives.
+#[inline]
+fn units(tris: usize, others: usize) -> f32 {
+    (tris.div_ceil(PACKET) + others) as f32
+}
+
+/// `boxes[i]` bounds primitive i; `is_tri[i]` says whether it is a triangle
+/// (packed `PACKET` to a SIMD test). Leaves hold at most `max_leaf` primitives.
+pub fn build(boxes: &[Aabb], is_tri: &[bool], max_leaf: usize) -> Bvh2 {
+    let mut items: Vec<Item> = boxes
+        .iter()
+        .zip(is_tri)
+        .enumerate()
+        .map(|(i, (&b, &tri))| Item { bounds: b, centroid: b.centroid(), index: i as u32, tri })
+        .collect();
+    let mut nodes = Vec::with_capacity(2 * items.len() / max_leaf.max(1) + 1);
+    if !items.is_empty() {
+        build_rec(&mut items, 0, 0, max_leaf.max(1), &mut nodes);
+    }
+    Bvh2 { nodes, order: items.iter().map(|it| it.index).collect() }
+}
+
+struct Split {
+    cost: f32,
+    /// Items (in the partitioned order) that go left.
+    left: usize,
+}
+
+fn build_rec(items: &mut [Item], offset: usize, depth: u32, max_leaf: usize, nodes: &mut Vec<Node2>) -> u32 {
+    let id = nodes.len() as u32;
+    let bounds = items.iter().fold(Aabb::EMPTY, |b, it| b.union(it.bounds));
+    let n = items.len();
+    let tris = items.iter().filter(|it| it.tri).count();
+    let leaf = Node2::Leaf { bounds, start: offset as u32, count: n as u32 };
+    nodes.push(leaf);
+    if n <= 1 {
+        return id;
+    }
+    let leaf_cost = COST_UNIT * units(tris, n - tris);
+    let cbounds = items.iter().fold(Aabb::EMPTY, |b, it| b.grow(it.centroid));
+    let degenerate = (cbounds.hi - cbounds.lo).max_element() <= 0.0;
+    let split = if degenerate || depth >= MAX_SAH_DEPTH {
+        None
+    } else if n <= SWEEP_MAX {
+        sweep_split(items, bounds.half_area())
+    } else {
+        binned_split(items, bounds.half_area(), cbounds)
+    };
+    let left = match split {
+        Some(s) if n > max_leaf || s.cost < leaf_cost => s.left,
+        Some(_) => return id,
+        None if n <= max_leaf => return id,
+        None => {
+            // Object median along the longest centroid axis.
+            let ext = cbounds.hi - cbounds.lo;
+            let axis = if ext.x >= ext.y && ext.x >= ext.z { 0 } else if ext.y >= ext.z { 1 } else { 2 };
+            let mid = n / 2;
+            items.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+            mid
+        }
+    };
+    let (l, r) = items.split_at_mut(left);
+    let li = build_rec(l, offset, depth + 1, max_leaf, nodes);
+    let ri = build_rec(r, offset + left, depth + 1, max_leaf, nodes);
+    nodes[id as usize] = Node2::Inner { bounds, left: li, right: ri };
+    id
+}
+
+/// Exact SAH: sort by centroid on each axis and sweep. Leaves `items`
+/// partitioned by the best split found.
+fn sweep_split(items: &mut [Item], parent_area: f32) -> Option<Split> {
+    let n = items.len();
+    let inv_area = 1.0 / parent_area.max(f32::MIN_POSITIVE);
+    let mut best: Option<(Split, usize)> = None;
+    let mut right_cost = vec![0.0f32; n];
+    for axis in 0..3 {
+        items.sort_by(|a, b| a.centroid[axis].total_cmp(&b.centroid[axis]).then(a.index.cmp(&b.index)));
+        // right_cost[i]: area × units of items[i..].
+        let (mut b, mut t) = (Aabb::EMPTY, 0);
+        for i in (1..n).rev() {
+            b = b.union(items[i].bounds);
+            t += items[i].tri as usize;
+            right_cost[i] = b.half_area() * units(t, n - i - t);
+        }
+        let (mut b, mut t) = (Aabb::EMPTY, 0);
+        for i in 1..n {
+            b = b.union(items[i - 1].bounds);
+            t += items[i - 1].tri as usize;
+            let cost = COST_TRAVERSE + COST_UNIT * (b.half_area() * units(t, i - t) + right_cost[i]) * inv_area;
+            if best.as_ref().is_none_or(|(s, _)| cost < s.cost) {
+                best = Some((Split { cost, left: i }, axis));
+            }
+        }
+    }
+    let (split, axis) = best?;
+    if axis != 2 {
+        items.sort_by(|a, b| a.centroid[axis].total_cmp(&b.centroid[axis]).then(a.index.cmp(&b.index)));
+    }
+    Some(split)
+}
+
+/// Binned SAH over the centroid bounds; partitions `items` by the best split.
+fn binned_split(items: &mut [Item], parent_area: f32, cbounds: Aabb) -> Option<Split> {
+    let inv_area = 1.0 / parent_area.max(f32::MIN_POSITIVE);
+    let ext = cbounds.hi - cbounds.lo;
+    let mut best: Option<(f32, usize, usize)> = None; // cost, axis, bins left of the split
+    for axis in 0..3 {
+        if ext[axis] <= 0.0 {
+            continue;
+        }
+        let scale = BINS as f32 / ext[axis];
+        let bin_of = |c: f32| (((c - cbounds.lo[axis]) * scale) as usize).min(BINS - 1);
+        let mut bb = [Aabb::EMPTY; BINS];
+        let mut tri = [0usize; BINS];
+        let mut cnt = [0usize; BINS];
+        for it in items.iter() {
+            let k = bin_of(it.centroid[axis]);
+            bb[k] = bb[k].union(it.bounds);
+            cnt[k] += 1;
+            tri[k] += it.tri as usize;
+        }
+        let mut right_cost = [0.0f32; BINS];
+        let (mut b, mut t, mut c) = (Aabb::EMPTY, 0, 0);
+        for k in (1..BINS).rev() {
+            b = b.union(bb[k]);
+            t += tri[k];
+            c += cnt[k];
+            right_cost[k] = if c == 0 { f32::INFINITY } else { b.half_area() * units(t, c - t) };
+        }
+        let (mut b, mut t, mut c) = (Aabb::EMPTY, 0, 0);
+        for k in 1..BINS {
+            b = b.union(bb[k - 1]);
+            t += tri[k - 1];
+            c += cnt[k - 1];
+            if c == 0 {
+                continue;
+            }
+            let cost = COST_TRAVERSE + COST_UNIT * (b.half_area() * units(t, c - t) + right_cost[k]) * inv_area;
+            if cost.is_finite() && best.is_none_or(|(bc, _, _)| cost < bc) {
+                best = Some((cost, axis, k));
+            }
+        }
+    }
+    let (cost, axis, k) = best?;
+    let scale = BINS as f32 / ext[axis];
+    let bin_of = |c: f32| (((c - cbounds.lo[axis]) * scale) as usize).min(BINS - 1);
+    // In-place partition.
+    let mut left = 0;
+    for i in 0..items.len() {
+        if bin_of(items[i].centroid[axis]) < k {
+            items.swap(i, left);
+            left += 1;
+        }
+    }
+    if left == 0 || left == items.len() {
+        return None;
+    }
+    Some(Split { cost, left })
+}
