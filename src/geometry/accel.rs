@@ -4,6 +4,12 @@
 //! test (`accel/simd.rs`: AVX2 on x86-64-v3, plain arrays elsewhere) checks
 //! all of them. Leaves hold triangles in SoA packets of eight, tested at
 //! once by a SIMD Möller–Trumbore; spheres and disks are tested one by one.
+//!
+//! Why our own and not a crate: it replaced `obvhs` (a binary BVH walked one
+//! box at a time) after measuring 9 % fewer instructions per sample and
+//! 11 % more samples/s on the Cornell box (2.30 → 2.56 M/s); scenes here are
+//! small, so the per-ray constant costs dominate, and 8-wide nodes and
+//! packets pay those once per eight boxes or triangles.
 
 mod build;
 mod simd;
