@@ -18,6 +18,7 @@
 pub mod conductor;
 pub mod dielectric;
 pub mod diffuse;
+pub mod dispersion;
 pub mod fresnel;
 pub mod ior;
 pub mod metals;
