@@ -151,6 +151,21 @@ fn ior_of_the_wrong_type_or_not_positive() {
 }
 
 #[test]
+fn bad_dispersive_ior() {
+    let e = load_err(&scene("    <bsdf type=\"dielectric\">\n        <string name=\"int_ior\" value=\"sellmeier:flint\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<string name=\"int_ior\"", "unknown dispersive medium \"flint\"");
+    assert!(format!("{e}").contains("bk7, fused silica, sf11, water, diamond"), "{e}");
+    let e = load_err(&scene("    <bsdf type=\"dielectric\">\n        <string name=\"ext_ior\" value=\"cauchy(1.5)\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<string name=\"ext_ior\"", "cauchy(A, B) needs 2 coefficients");
+    // A thin pane does not bend light, so it cannot disperse it.
+    let e = load_err(&scene("    <bsdf type=\"thindielectric\">\n        <string name=\"int_ior\" value=\"sellmeier:bk7\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<string name=\"int_ior\"", "cannot disperse");
+    // Plastic takes constants only: a dispersive form is an unknown name there.
+    let e = load_err(&scene("    <bsdf type=\"plastic\">\n        <string name=\"int_ior\" value=\"sellmeier:bk7\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<string name=\"int_ior\"", "unknown index of refraction");
+}
+
+#[test]
 fn unknown_metal_and_conflicting_conductor_inputs() {
     let e = load_err(&scene("    <bsdf type=\"conductor\">\n        <string name=\"material\" value=\"Gold\"/>\n    </bsdf>\n"));
     assert_error(&e, &scene_path(), 10, 9, "<string name=\"material\"", "unknown conductor material \"Gold\"");

@@ -20,7 +20,7 @@
 //!
 //! | parameter | type | default | meaning |
 //! |---|---|---|---|
-//! | `int_ior` | float / string | `bk7` (1.5046) | interior index, or a name (`water`, `diamond`, `crown glass`, …) |
+//! | `int_ior` | float / string | `bk7` (1.5046) | interior index, a name (`water`, `diamond`, `crown glass`, …), or a dispersive form (`sellmeier:bk7`, see `dispersion.rs`; Snell only) |
 //! | `ext_ior` | float / string | `air` (1.000277) | exterior index, or a name |
 //! | `specular_reflectance` | rgb / spectrum / float / texture | 1 | scale of reflection (not physical) |
 //! | `specular_transmittance` | rgb / spectrum / float / texture | 1 | scale of transmission (not physical) |
@@ -32,6 +32,7 @@
 //! </bsdf>
 //! ```
 
+use super::dispersion::DispersiveInterface;
 use super::fresnel::{fresnel_dielectric, reflect, refract};
 use super::{BsdfSample, Lobe, TransportMode};
 use crate::geometry::SurfaceInteraction;
@@ -41,8 +42,11 @@ use glam::Vec3;
 
 #[derive(Clone, Debug)]
 pub struct Dielectric {
-    /// int_ior / ext_ior.
+    /// int_ior / ext_ior (at the d line if dispersive).
     pub eta: f32,
+    /// The indices as functions of the wavelength, if either disperses
+    /// (`bsdf/dispersion.rs`); RGB mode uses `eta`.
+    pub dispersion: Option<Box<DispersiveInterface>>,
     pub specular_reflectance: Texture,
     pub specular_transmittance: Texture,
 }
@@ -86,6 +90,7 @@ mod tests {
     fn glass(eta: f32) -> Bsdf {
         Bsdf::Dielectric(Dielectric {
             eta,
+            dispersion: None,
             specular_reflectance: Texture::Constant(Rgb::WHITE),
             specular_transmittance: Texture::Constant(Rgb::WHITE),
         })

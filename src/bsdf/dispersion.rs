@@ -22,6 +22,22 @@
 //!
 //! In RGB mode a dispersive medium uses its index at the helium d line
 //! (587.56 nm), the wavelength glass catalogues quote as n_d.
+//!
+//! ## In scene files
+//!
+//! Mitsuba 3 has no dispersive dielectric, so this syntax is Snell's own. A
+//! plain number or name in `int_ior` / `ext_ior` keeps Mitsuba's meaning (a
+//! constant: `bk7` is 1.5046, as in Mitsuba), so shared files render alike;
+//! dispersion is asked for explicitly with a string of one of these forms:
+//!
+//! ```xml
+//! <string name="int_ior" value="sellmeier:bk7"/>       <!-- a named medium above -->
+//! <string name="int_ior" value="sellmeier(1.03961212, 0.231792344, 1.01046945;
+//!                                         0.00600069867, 0.0200179144, 103.560653)"/>
+//! <string name="int_ior" value="cauchy(1.5046, 0.00420)"/>   <!-- A, B (µm²) -->
+//! ```
+//!
+//! `sellmeier(B₁, …, Bₙ; C₁, …, Cₙ)` takes one to six terms, C in µm².
 
 /// The helium d line (nm): where catalogues quote n_d, and the index a
 /// dispersive medium has in RGB mode.
@@ -37,6 +53,21 @@ pub enum IorSpectrum {
     Cauchy { a: f64, b: f64 },
     /// (λ nm, η) pairs with increasing λ.
     Tabulated(Vec<(f32, f32)>),
+}
+
+/// The two media of a dispersive interface (`dielectric` with a dispersive
+/// `int_ior` or `ext_ior`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DispersiveInterface {
+    pub int_ior: IorSpectrum,
+    pub ext_ior: IorSpectrum,
+}
+
+impl DispersiveInterface {
+    /// Relative index int/ext at vacuum wavelength `lambda` (nm).
+    pub fn eta(&self, lambda: f32) -> f32 {
+        self.int_ior.eval(lambda) / self.ext_ior.eval(lambda)
+    }
 }
 
 /// Named dispersive media: (name, Sellmeier B, Sellmeier C in µm²).
@@ -66,6 +97,55 @@ pub fn named_dispersive(name: &str) -> Option<IorSpectrum> {
 /// The valid names, for error messages.
 pub fn dispersive_names() -> Vec<&'static str> {
     NAMED.iter().map(|(n, _, _)| *n).collect()
+}
+
+/// Parses the dispersive forms of an `int_ior` / `ext_ior` string (see the
+/// module documentation). `None`: not a dispersive form (the caller treats
+/// it as a constant's name); `Some(Err)`: a dispersive form with a mistake.
+pub fn parse_ior_expr(text: &str) -> Option<Result<IorSpectrum, String>> {
+    let t = text.trim();
+    let lower = t.to_ascii_lowercase();
+    if let Some(name) = lower.strip_prefix("sellmeier:") {
+        return Some(named_dispersive(name).ok_or_else(|| {
+            format!("unknown dispersive medium \"{}\" (valid: {})", name.trim(), dispersive_names().join(", "))
+        }));
+    }
+    let (kind, args) = if let Some(rest) = lower.strip_prefix("sellmeier") {
+        ("sellmeier", rest)
+    } else if let Some(rest) = lower.strip_prefix("cauchy") {
+        ("cauchy", rest)
+    } else {
+        return None;
+    };
+    let Some(inner) = args.trim().strip_prefix('(').and_then(|a| a.strip_suffix(')')) else {
+        return Some(Err(format!("expected {kind}(…) with the coefficients in parentheses")));
+    };
+    let numbers = |part: &str| -> Result<Vec<f64>, String> {
+        part.split(',')
+            .map(|x| {
+                let x = x.trim();
+                x.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| format!("\"{x}\" is not a number"))
+            })
+            .collect()
+    };
+    let result = match kind {
+        "sellmeier" => {
+            let Some((b, c)) = inner.split_once(';') else {
+                return Some(Err("sellmeier(B₁, …, Bₙ; C₁, …, Cₙ) needs a ';' between the B and the C coefficients".into()));
+            };
+            match (numbers(b), numbers(c)) {
+                (Ok(b), Ok(c)) if b.len() == c.len() && (1..=6).contains(&b.len()) => Ok(IorSpectrum::Sellmeier { b, c }),
+                (Ok(b), Ok(c)) => Err(format!("sellmeier needs as many B as C coefficients, 1 to 6 each (got {} and {})", b.len(), c.len())),
+                (Err(e), _) | (_, Err(e)) => Err(e),
+            }
+        }
+        _ => match numbers(inner) {
+            Ok(v) if v.len() == 2 => Ok(IorSpectrum::Cauchy { a: v[0], b: v[1] }),
+            Ok(v) => Err(format!("cauchy(A, B) needs 2 coefficients, not {}", v.len())),
+            Err(e) => Err(e),
+        },
+    };
+    Some(result.and_then(|ior| ior.check_visible().map(|()| ior)))
 }
 
 impl IorSpectrum {
@@ -161,6 +241,36 @@ mod tests {
         assert!((bk7.eval(F_LINE) - 1.522_38).abs() < 2e-5 && (bk7.eval(C_LINE) - 1.514_32).abs() < 2e-5);
         assert!(named_dispersive("flint").is_none());
         assert_eq!(dispersive_names().len(), 5);
+    }
+
+    #[test]
+    fn scene_file_forms() {
+        let named = parse_ior_expr(" Sellmeier:BK7 ");
+        assert_eq!(named, Some(Ok(named_dispersive("bk7").unwrap_or_else(|| panic!()))));
+        let custom = parse_ior_expr("sellmeier(1.03961212, 0.231792344, 1.01046945; 0.00600069867, 0.0200179144, 103.560653)");
+        match custom {
+            Some(Ok(ior)) => assert!((ior.nominal() - 1.5168).abs() < 1e-4),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(parse_ior_expr("cauchy(1.5, 0.004)"), Some(Ok(IorSpectrum::Cauchy { a: 1.5, b: 0.004 })));
+        // Not dispersive forms: left to the constant names.
+        assert_eq!(parse_ior_expr("bk7"), None);
+        assert_eq!(parse_ior_expr("water"), None);
+        // Mistakes are errors that say what is wrong.
+        for (bad, says) in [
+            ("sellmeier:flint", "unknown dispersive medium"),
+            ("sellmeier(1, 2; 0.1)", "as many B as C"),
+            ("sellmeier(1, 2, 0.1)", "';'"),
+            ("sellmeier 1; 2", "parentheses"),
+            ("cauchy(1.5)", "2 coefficients"),
+            ("cauchy(1.5, x)", "not a number"),
+            ("cauchy(-1.5, 0)", "index of refraction is"),
+        ] {
+            match parse_ior_expr(bad) {
+                Some(Err(e)) => assert!(e.contains(says), "{bad}: {e}"),
+                other => panic!("{bad}: {other:?}"),
+            }
+        }
     }
 
     #[test]

@@ -7,6 +7,7 @@ use super::error::{Result, SceneError};
 use super::props::Props;
 use super::xml::{self, Child, ChildTarget, Kind, Node};
 use super::Scene;
+use crate::bsdf::dispersion::DispersiveInterface;
 use crate::bsdf::{Bsdf, Conductor, Lobe, Dielectric, Diffuse, Plastic, ThinDielectric, TwoSided};
 use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, PointLight};
 use crate::film::{FilmSpec, Filter, FilterKind};
@@ -321,14 +322,20 @@ impl Loader {
             "diffuse" => Bsdf::Diffuse(Diffuse { reflectance: self.texture_input(&props, "reflectance", Rgb::new(0.5, 0.5, 0.5))? }),
             "conductor" => self.conductor(node, &props)?,
             "dielectric" | "thindielectric" => {
-                let int_ior = props.ior("int_ior", BK7)?;
-                let ext_ior = props.ior("ext_ior", AIR)?;
+                let int_ior = props.ior_spectrum("int_ior", BK7)?;
+                let ext_ior = props.ior_spectrum("ext_ior", AIR)?;
                 let specular_reflectance = self.texture_input(&props, "specular_reflectance", Rgb::WHITE)?;
                 let specular_transmittance = self.texture_input(&props, "specular_transmittance", Rgb::WHITE)?;
-                let eta = int_ior / ext_ior;
+                let eta = int_ior.nominal() / ext_ior.nominal();
+                let dispersive = int_ior.is_dispersive() || ext_ior.is_dispersive();
                 if node.plugin == "dielectric" {
-                    Bsdf::Dielectric(Dielectric { eta, specular_reflectance, specular_transmittance })
+                    let dispersion = dispersive.then(|| Box::new(DispersiveInterface { int_ior, ext_ior }));
+                    Bsdf::Dielectric(Dielectric { eta, dispersion, specular_reflectance, specular_transmittance })
                 } else {
+                    if dispersive {
+                        let which = if int_ior.is_dispersive() { "int_ior" } else { "ext_ior" };
+                        return Err(props.error_at(which, "thindielectric does not bend light, so it cannot disperse it: give a constant index"));
+                    }
                     Bsdf::ThinDielectric(ThinDielectric { eta, specular_reflectance, specular_transmittance })
                 }
             }

@@ -4,6 +4,7 @@
 
 use super::error::{Result, SceneError};
 use super::xml::{Child, Kind, Node, Value};
+use crate::bsdf::dispersion::IorSpectrum;
 use crate::math::Transform;
 use crate::spectrum::Rgb;
 use glam::Vec3;
@@ -41,6 +42,14 @@ impl<'a> Props<'a> {
     /// Whether a nested object (or reference) is called `name`.
     pub fn has_child(&self, name: &str) -> bool {
         self.node.children.iter().any(|c| c.name.as_deref() == Some(name))
+    }
+
+    /// An error located at property `name` (or at the object, if absent).
+    pub fn error_at(&self, name: &str, message: impl Into<String>) -> SceneError {
+        match self.node.props.iter().find(|p| p.name == name) {
+            Some(p) => SceneError::at(&p.loc, message),
+            None => SceneError::at(&self.node.loc, message),
+        }
     }
 
     fn type_error(&self, i: usize, expected: &str) -> SceneError {
@@ -149,6 +158,19 @@ impl<'a> Props<'a> {
 
     /// An index of refraction given as a positive number or a name from
     /// [`crate::bsdf::ior`] (Mitsuba's `lookup_ior`); `default` if absent.
+    /// An index of refraction that may depend on the wavelength: a number,
+    /// a constant's name, or a dispersive form (`sellmeier:bk7`, see
+    /// `bsdf/dispersion.rs`).
+    pub fn ior_spectrum(&self, name: &str, default: f32) -> Result<IorSpectrum> {
+        if let Some((i, Value::String(s))) = self.find(name) {
+            if let Some(parsed) = crate::bsdf::dispersion::parse_ior_expr(s) {
+                let loc = &self.node.props[i].loc;
+                return parsed.map_err(|e| SceneError::at(loc, format!("bad dispersive index of refraction for \"{name}\": {e}")));
+            }
+        }
+        self.ior(name, default).map(IorSpectrum::Constant)
+    }
+
     pub fn ior(&self, name: &str, default: f32) -> Result<f32> {
         let Some((i, value)) = self.find(name) else { return Ok(default) };
         let loc = &self.node.props[i].loc;
