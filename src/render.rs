@@ -85,10 +85,10 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
                     for x in tx..tx + tw {
                         let mut sampler = Sampler::for_pixel(scene.sampler.seed, x, y);
                         for _ in 0..spp {
-                            let wl = S::sample_wavelengths(sampler.next_1d());
+                            let mut wl = S::sample_wavelengths(sampler.next_1d());
                             let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
                             let ray = scene.camera.generate_ray(pos * inv_size);
-                            let l: S = scene.integrator.li(scene, ray, &mut sampler, &wl);
+                            let l: S = scene.integrator.li(scene, ray, &mut sampler, &mut wl);
                             let mut rgb = l.to_rgb(&wl);
                             if !rgb.is_finite() {
                                 bad += 1;

@@ -54,7 +54,11 @@ pub struct Dielectric {
 impl Dielectric {
     #[inline]
     pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, u: f32, mode: TransportMode, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
-        let f = fresnel_dielectric(wi.z, self.eta);
+        let eta = match (&self.dispersion, S::hero_wavelength(wl)) {
+            (Some(d), Some(lambda)) => d.eta(lambda),
+            _ => self.eta,
+        };
+        let f = fresnel_dielectric(wi.z, eta);
         if u < f.r {
             Some(BsdfSample {
                 wo: reflect(wi),

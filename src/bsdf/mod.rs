@@ -87,6 +87,7 @@ pub enum Bsdf {
 }
 
 impl Bsdf {
+    #[inline]
     pub fn lobes(&self) -> Lobe {
         match self {
             Bsdf::Diffuse(_) => Lobe::DIFFUSE_REFLECTION,
@@ -95,6 +96,12 @@ impl Bsdf {
             Bsdf::Plastic(_) => Lobe::DELTA_REFLECTION | Lobe::DIFFUSE_REFLECTION,
             Bsdf::TwoSided(t) => t.lobes(),
         }
+    }
+
+    /// Whether the directions this BSDF samples depend on the wavelength.
+    #[inline]
+    pub fn disperses(&self) -> bool {
+        matches!(self, Bsdf::Dielectric(d) if d.dispersion.is_some())
     }
 
     #[inline]

@@ -41,7 +41,7 @@ pub struct Direct {
 }
 
 impl Direct {
-    pub fn li<S: Spectrum>(&self, scene: &Scene, ray: Ray, sampler: &mut Sampler, wl: &S::Wavelengths) -> S {
+    pub fn li<S: Spectrum>(&self, scene: &Scene, ray: Ray, sampler: &mut Sampler, wl: &mut S::Wavelengths) -> S {
         let mut result = S::zero();
         let hit = if self.hide_emitters { scene.intersect_hiding_emitters(&ray) } else { scene.intersect(&ray) };
         let Some(si) = hit else {
@@ -78,6 +78,11 @@ impl Direct {
             }
         }
 
+        // A dispersive interface sends each wavelength its own way: BSDF
+        // samples are the hero's alone.
+        if self.bsdf_samples > 0 && bsdf.disperses() {
+            S::terminate_secondary(wl);
+        }
         for _ in 0..self.bsdf_samples {
             let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), TransportMode::Radiance, wl) else { continue };
             let d = si.to_world(bs.wo);

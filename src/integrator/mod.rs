@@ -22,7 +22,9 @@ pub enum Integrator {
 
 impl Integrator {
     #[inline]
-    pub fn li<S: Spectrum>(&self, scene: &Scene, ray: Ray, sampler: &mut Sampler, wl: &S::Wavelengths) -> S {
+    /// Radiance along `ray`. A dispersive interface on the path may cut `wl`
+    /// down to its hero wavelength; the film must weight with the final `wl`.
+    pub fn li<S: Spectrum>(&self, scene: &Scene, ray: Ray, sampler: &mut Sampler, wl: &mut S::Wavelengths) -> S {
         match self {
             Integrator::Direct(d) => d.li(scene, ray, sampler, wl),
             Integrator::Path(p) => p.li(scene, ray, sampler, wl),

@@ -34,7 +34,7 @@ pub struct PathTracer {
 }
 
 impl PathTracer {
-    pub fn li<S: Spectrum>(&self, scene: &Scene, mut ray: Ray, sampler: &mut Sampler, wl: &S::Wavelengths) -> S {
+    pub fn li<S: Spectrum>(&self, scene: &Scene, mut ray: Ray, sampler: &mut Sampler, wl: &mut S::Wavelengths) -> S {
         let mut result = S::zero();
         let mut throughput = S::splat(1.0);
         let mut eta = 1.0f32;
@@ -79,7 +79,11 @@ impl PathTracer {
                 }
             }
 
-            // Continue the path by sampling the BSDF.
+            // Continue the path by sampling the BSDF. Past a dispersive
+            // interface the direction holds for the hero wavelength only.
+            if bsdf.disperses() {
+                S::terminate_secondary(wl);
+            }
             let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), TransportMode::Radiance, wl) else { break };
             let d = si.to_world(bs.wo);
             throughput *= bs.weight;

@@ -35,6 +35,14 @@ pub trait Spectrum:
     fn splat(v: f32) -> Self;
     /// Draws the wavelengths a camera path carries (u uniform in [0,1)).
     fn sample_wavelengths(u: f32) -> Self::Wavelengths;
+    /// The wavelength (nm) that decides directions at a dispersive
+    /// interface; `None` where there are no wavelengths (RGB).
+    fn hero_wavelength(wavelengths: &Self::Wavelengths) -> Option<f32>;
+    /// Keeps only the hero wavelength, after the path has taken a direction
+    /// that only it can take (refraction by a dispersive interface). The
+    /// film then weights the whole path's estimate by the hero alone, which
+    /// stays unbiased since the hero's marginal density is unchanged.
+    fn terminate_secondary(wavelengths: &mut Self::Wavelengths);
     /// A reflectance-like input (albedo in [0,1]) as this spectrum.
     fn from_reflectance(rgb: Rgb, wavelengths: &Self::Wavelengths) -> Self;
     /// An emission input (radiance, intensity, irradiance) as this spectrum.

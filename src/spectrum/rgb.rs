@@ -101,6 +101,12 @@ impl Spectrum for Rgb {
     #[inline]
     fn sample_wavelengths(_u: f32) {}
     #[inline]
+    fn hero_wavelength(_: &()) -> Option<f32> {
+        None
+    }
+    #[inline]
+    fn terminate_secondary(_: &mut ()) {}
+    #[inline]
     fn from_reflectance(rgb: Rgb, _: &()) -> Self {
         rgb
     }
