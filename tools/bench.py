@@ -1,5 +1,10 @@
 #!/usr/bin/env python3
-"""Performance benchmark: Snell vs Mitsuba 3 (llvm_ad_rgb) on the same scene.
+"""Performance benchmark: Snell vs Mitsuba 3 (llvm_ad_rgb) on the same scenes.
+
+By default two scenes: the Cornell box (diffuse) and the caustic Cornell box
+(glass and metal spheres: long specular paths); --scene (repeatable) picks others.
+For each scene, Snell and then Mitsuba run back to back, so both see the same
+machine load.
 
 Snell half: runs, N times,
   target/release/snell render SCENE -o /tmp/bench.exr --spp 256 -D res=512 \
@@ -14,7 +19,7 @@ width*height*spp / seconds.
 
 Prints both medians and the ratio snell/mitsuba (samples/s; > 1 = Snell faster).
 
-Usage: python3 tools/bench.py [--runs 3] [--scene scenes/cornell-box.xml]
+Usage: python3 tools/bench.py [--runs 3] [--scene scenes/cornell-box.xml]...
            [--spp 256] [--res 512] [--threads 2] [-D key=value ...]
            [--snell target/release/snell] [--no-snell] [--no-mitsuba] [--json out.json]
 """
@@ -110,7 +115,7 @@ def mitsuba_worker(args, params):
                       "variant": mi.variant()}))
 
 
-def bench_mitsuba(args, argv):
+def bench_mitsuba(args):
     try:
         import mitsuba  # noqa: F401
         py = sys.executable
@@ -122,7 +127,12 @@ def bench_mitsuba(args, argv):
     env = dict(os.environ)
     env.setdefault("DRJIT_LIBLLVM_PATH", LLVM_LIB)
     print(f"mitsuba: llvm_ad_rgb, {args.threads} threads, via {py}")
-    r = subprocess.run([py, os.path.abspath(__file__), "--mitsuba-worker"] + argv,
+    argv = ["--mitsuba-worker", "--scene", args.scene, "--spp", str(args.spp),
+            "--res", str(args.res), "--max-depth", str(args.max_depth),
+            "--threads", str(args.threads), "--runs", str(args.runs)]
+    for kv in args.defines:
+        argv += ["-D", kv]
+    r = subprocess.run([py, os.path.abspath(__file__)] + argv,
                        cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
     if r.returncode != 0:
         print(f"mitsuba: worker failed (exit {r.returncode}); skipping")
@@ -130,36 +140,17 @@ def bench_mitsuba(args, argv):
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
-def main():
-    sys.stdout.reconfigure(line_buffering=True)  # keep order with the worker's stderr
-    argv = sys.argv[1:]
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--runs", type=int, default=3)
-    ap.add_argument("--scene", default="scenes/cornell-box.xml")
-    ap.add_argument("--spp", type=int, default=256)
-    ap.add_argument("--res", type=int, default=512)
-    ap.add_argument("--max-depth", type=int, default=8)
-    ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("-D", dest="defines", action="append", default=[], metavar="KEY=VALUE")
-    ap.add_argument("--snell", default=os.path.join(ROOT, "target", "release", "snell"))
-    ap.add_argument("--no-snell", action="store_true")
-    ap.add_argument("--no-mitsuba", action="store_true")
-    ap.add_argument("--json", help="also write the results to this file")
-    ap.add_argument("--mitsuba-worker", action="store_true", help=argparse.SUPPRESS)
-    args = ap.parse_args()
-    args.scene = os.path.join(ROOT, args.scene) if not os.path.isabs(args.scene) else args.scene
+DEFAULT_SCENES = ["scenes/cornell-box.xml", "scenes/caustic-cornell-box.xml"]
+
+
+def bench_scene(args):
+    """Snell then Mitsuba on args.scene; prints and returns the figures."""
     params = scene_params(args.scene, args.res, args.max_depth, args.defines)
-
-    if args.mitsuba_worker:
-        mitsuba_worker(args, params)
-        return
-
-    res = {"scene": os.path.relpath(args.scene, ROOT), "spp": args.spp, "params": params,
-           "threads": args.threads}
+    rel = os.path.relpath(args.scene, ROOT)
+    print(f"== {rel}: {args.res}², {args.spp} spp, {params}, {args.threads} threads")
+    res = {"scene": rel, "spp": args.spp, "params": params, "threads": args.threads}
     res["snell"] = None if args.no_snell else bench_snell(args, params)
-    res["mitsuba"] = None if args.no_mitsuba else bench_mitsuba(args, argv)
-
-    print()
+    res["mitsuba"] = None if args.no_mitsuba else bench_mitsuba(args)
     s, m = res["snell"], res["mitsuba"]
     if s:
         print(f"snell   median: {s['samples_per_second'] / 1e6:8.3f} M samples/s "
@@ -171,9 +162,52 @@ def main():
     if s and m:
         res["ratio_snell_over_mitsuba"] = s["samples_per_second"] / m["samples_per_second"]
         print(f"ratio snell/mitsuba (samples/s): {res['ratio_snell_over_mitsuba']:.3f}")
+    print()
+    return res
+
+
+def main():
+    sys.stdout.reconfigure(line_buffering=True)  # keep order with the worker's stderr
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--scene", action="append", default=[],
+                    help="scene to benchmark (repeatable); default: " + ", ".join(DEFAULT_SCENES))
+    ap.add_argument("--spp", type=int, default=256)
+    ap.add_argument("--res", type=int, default=512)
+    ap.add_argument("--max-depth", type=int, default=8)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("-D", dest="defines", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--snell", default=os.path.join(ROOT, "target", "release", "snell"))
+    ap.add_argument("--no-snell", action="store_true")
+    ap.add_argument("--no-mitsuba", action="store_true")
+    ap.add_argument("--json", help="also write the results to this file")
+    ap.add_argument("--mitsuba-worker", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    scenes = [os.path.join(ROOT, sc) if not os.path.isabs(sc) else sc
+              for sc in (args.scene or DEFAULT_SCENES)]
+    missing = [sc for sc in scenes if not os.path.isfile(sc)]
+    if missing:
+        sys.exit("error: no such scene: " + ", ".join(missing))
+
+    if args.mitsuba_worker:
+        args.scene = scenes[0]
+        mitsuba_worker(args, scene_params(args.scene, args.res, args.max_depth, args.defines))
+        return
+
+    results = []
+    for sc in scenes:
+        args.scene = sc
+        results.append(bench_scene(args))
+    print("summary (M samples/s, median of %d runs)" % args.runs)
+    print(f"{'scene':<36} {'snell':>8} {'mitsuba':>8} {'ratio':>6}")
+    for r in results:
+        sn = r["snell"]["samples_per_second"] / 1e6 if r["snell"] else float("nan")
+        mi_ = r["mitsuba"]["samples_per_second"] / 1e6 if r["mitsuba"] else float("nan")
+        ra = r.get("ratio_snell_over_mitsuba", float("nan"))
+        print(f"{r['scene']:<36} {sn:8.3f} {mi_:8.3f} {ra:6.3f}")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump(res, f, indent=2)
+            json.dump(results, f, indent=2)
 
 
 if __name__ == "__main__":
