@@ -21,8 +21,11 @@ pub enum FilterKind {
 pub struct Filter {
     pub kind: FilterKind,
     radius: f32,
-    /// Values at |x| = i·radius/(LUT − 1), interpolated linearly.
-    table: Vec<f32>,
+    /// (LUT − 1) / radius: maps |x| to a table position.
+    scale: f32,
+    /// Segment i: the values at |x| = i·radius/(LUT − 1) and the next one,
+    /// stored together so a lookup reads one entry.
+    segments: Vec<[f32; 2]>,
 }
 
 const LUT: usize = 256;
@@ -54,8 +57,9 @@ impl FilterKind {
 impl Filter {
     pub fn new(kind: FilterKind) -> Filter {
         let radius = kind.radius();
-        let table = (0..LUT).map(|i| kind.eval(radius * i as f32 / (LUT - 1) as f32)).collect();
-        Filter { kind, radius, table }
+        let value = |i: usize| kind.eval(radius * i as f32 / (LUT - 1) as f32);
+        let segments = (0..LUT - 1).map(|i| [value(i), value(i + 1)]).collect();
+        Filter { kind, radius, scale: (LUT - 1) as f32 / radius, segments }
     }
 
     pub fn gaussian(stddev: f32) -> Filter {
@@ -71,13 +75,14 @@ impl Filter {
         if let FilterKind::Box = self.kind {
             return if (-0.5..0.5).contains(&x) { 1.0 } else { 0.0 };
         }
-        let f = x.abs() / self.radius * (LUT - 1) as f32;
+        let f = x.abs() * self.scale;
         if !(f < (LUT - 1) as f32) {
             return 0.0;
         }
         let i = f as usize;
         let t = f - i as f32;
-        self.table[i] * (1.0 - t) + self.table[i + 1] * t
+        let [a, b] = self.segments[i];
+        a + (b - a) * t
     }
 }
 

@@ -72,13 +72,15 @@ struct Leaf {
     other_end: u32,
 }
 
-/// `PACKET` triangles as v0, e1 = v1 − v0, e2 = v2 − v0, one SIMD lane
-/// each. Unused lanes are degenerate (zero edges), which the test rejects.
+/// `PACKET` triangles, one SIMD lane each: v0, −e1 = v0 − v1,
+/// e2 = v2 − v0 and the unnormalised normal e2 × e1. Unused lanes are
+/// degenerate (all zero), which the test rejects.
 #[derive(Clone, Copy, Debug)]
 struct TriPacket {
     v0: [F8; 3],
-    e1: [F8; 3],
+    e1n: [F8; 3],
     e2: [F8; 3],
+    ng: [F8; 3],
 }
 
 /// Leaves hold at most this many primitives.
@@ -159,20 +161,23 @@ struct RayData {
     /// Splatted origin and direction, for the triangle packets.
     o8: [F8; 3],
     d8: [F8; 3],
-    /// Slab test: entry distance on an axis is `plane · inv_n − oinv_n`,
-    /// exit distance `plane · inv_f − oinv_f` (one FMA each). The inverse
-    /// direction has zero components replaced by tiny ones (no NaN), and
-    /// the near and far constants are biased by bounds on the rounding
-    /// error (of 1/d, of o·(1/d) and of the FMA), so that the test is
-    /// conservative: it never loses a box the exact ray enters.
-    inv_n: [F8; 3],
+    /// Slab test: entry distance on an axis is `plane · inv − oinv_n`,
+    /// exit distance `plane · inv − oinv_f` (one FMA each). The inverse
+    /// direction has zero components replaced by tiny ones (no NaN); the
+    /// two offsets are o·inv ± a bound on its rounding error, and exit
+    /// distances are scaled up by `FAR` before the comparison, so that the
+    /// test is conservative: it never loses a box the exact ray enters.
+    inv: [F8; 3],
     oinv_n: [F8; 3],
-    inv_f: [F8; 3],
     oinv_f: [F8; 3],
     /// Index into `Node::b` of the near and far plane on each axis.
     near: [usize; 3],
     far: [usize; 3],
 }
+
+/// 2⁻²¹: covers the relative rounding of 1/d and of the slab FMAs.
+const REL: f32 = 4.0 * f32::EPSILON;
+const FAR: f32 = 1.0 + 2.0 * REL;
 
 impl RayData {
     #[inline(always)]
@@ -182,25 +187,22 @@ impl RayData {
         let tiny = Vec3A::splat(1e-20);
         let d_safe = Vec3A::select(d.abs().cmplt(tiny), tiny.copysign(d), d);
         let inv = Vec3A::ONE / d_safe;
-        const REL: f32 = 4.0 * f32::EPSILON; // 2⁻²¹
-        let inv_n = inv * (1.0 - REL);
-        let inv_f = inv * (1.0 + REL);
-        let err = (o * inv).abs() * REL;
-        let oinv_n = o * inv_n + err;
-        let oinv_f = o * inv_f - err;
-        let near = [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0];
+        let oinv = o * inv;
+        let err = oinv.abs() * REL;
+        let (oinv_n, oinv_f) = (oinv + err, oinv - err);
+        let neg = inv.cmplt(Vec3A::ZERO).bitmask() as usize;
+        let (nx, ny, nz) = (neg & 1, (neg >> 1) & 1, neg >> 2);
         let s = |v: Vec3A| [F8::splat(v.x), F8::splat(v.y), F8::splat(v.z)];
         RayData {
             o,
             d,
             o8: s(o),
             d8: s(d),
-            inv_n: s(inv_n),
+            inv: s(inv),
             oinv_n: s(oinv_n),
-            inv_f: s(inv_f),
             oinv_f: s(oinv_f),
-            near: [near[0] as usize * 3, 1 + near[1] as usize * 3, 2 + near[2] as usize * 3],
-            far: [3 - near[0] as usize * 3, 4 - near[1] as usize * 3, 5 - near[2] as usize * 3],
+            near: [3 * nx, 1 + 3 * ny, 2 + 3 * nz],
+            far: [3 - 3 * nx, 4 - 3 * ny, 5 - 3 * nz],
         }
     }
 
@@ -219,49 +221,45 @@ impl RayData {
                 *node.b.get_unchecked(self.far[2]),
             )
         };
-        let tnx = nx.mul_sub(self.inv_n[0], self.oinv_n[0]);
-        let tny = ny.mul_sub(self.inv_n[1], self.oinv_n[1]);
-        let tnz = nz.mul_sub(self.inv_n[2], self.oinv_n[2]);
-        let tfx = fx.mul_sub(self.inv_f[0], self.oinv_f[0]);
-        let tfy = fy.mul_sub(self.inv_f[1], self.oinv_f[1]);
-        let tfz = fz.mul_sub(self.inv_f[2], self.oinv_f[2]);
+        let tnx = nx.mul_sub(self.inv[0], self.oinv_n[0]);
+        let tny = ny.mul_sub(self.inv[1], self.oinv_n[1]);
+        let tnz = nz.mul_sub(self.inv[2], self.oinv_n[2]);
+        let tfx = fx.mul_sub(self.inv[0], self.oinv_f[0]);
+        let tfy = fy.mul_sub(self.inv[1], self.oinv_f[1]);
+        let tfz = fz.mul_sub(self.inv[2], self.oinv_f[2]);
         let tnear = tnx.max(tny).max(tnz.max(F8::splat(0.0)));
         let tfar = tfx.min(tfy).min(tfz.min(F8::splat(tmax)));
-        (tnear, tnear.le(tfar).bitmask())
+        (tnear, tnear.le(tfar * F8::splat(FAR)).bitmask())
     }
 
-    /// Möller–Trumbore on a packet: hit distances (only meaningful in the
-    /// mask's lanes), barycentrics, and the mask of hits in (0, tmax).
+    /// Möller–Trumbore on a packet, divisions deferred: returns the
+    /// numerators of t, b1, b2 and |det|, all with det's sign removed, and
+    /// the mask of hits in (0, tmax).
     #[inline(always)]
-    fn triangles(&self, p: &TriPacket, tmax: f32) -> (F8, F8, F8, u32) {
+    fn triangles(&self, p: &TriPacket, tmax: f32) -> ([F8; 4], u32) {
         let [dx, dy, dz] = self.d8;
-        let [e1x, e1y, e1z] = p.e1;
-        let [e2x, e2y, e2z] = p.e2;
-        // pvec = d × e2
-        let px = dy.mul_sub(e2z, dz * e2y);
-        let py = dz.mul_sub(e2x, dx * e2z);
-        let pz = dx.mul_sub(e2y, dy * e2x);
-        let det = e1x.mul_add(px, e1y.mul_add(py, e1z * pz));
-        // tvec = o − v0
-        let tx = self.o8[0] - p.v0[0];
-        let ty = self.o8[1] - p.v0[1];
-        let tz = self.o8[2] - p.v0[2];
-        // qvec = tvec × e1
-        let qx = ty.mul_sub(e1z, tz * e1y);
-        let qy = tz.mul_sub(e1x, tx * e1z);
-        let qz = tx.mul_sub(e1y, ty * e1x);
-        let inv = F8::splat(1.0) / det;
-        let u = tx.mul_add(px, ty.mul_add(py, tz * pz)) * inv;
-        let v = dx.mul_add(qx, dy.mul_add(qy, dz * qz)) * inv;
-        let t = e2x.mul_add(qx, e2y.mul_add(qy, e2z * qz)) * inv;
+        // c = v0 − o, r = d × c
+        let cx = p.v0[0] - self.o8[0];
+        let cy = p.v0[1] - self.o8[1];
+        let cz = p.v0[2] - self.o8[2];
+        let rx = dy.mul_sub(cz, dz * cy);
+        let ry = dz.mul_sub(cx, dx * cz);
+        let rz = dx.mul_sub(cy, dy * cx);
+        let det = dx.mul_add(p.ng[0], dy.mul_add(p.ng[1], dz * p.ng[2]));
+        let u = p.e2[0].mul_add(rx, p.e2[1].mul_add(ry, p.e2[2] * rz));
+        let v = p.e1n[0].mul_add(rx, p.e1n[1].mul_add(ry, p.e1n[2] * rz));
+        let t = cx.mul_add(p.ng[0], cy.mul_add(p.ng[1], cz * p.ng[2]));
+        let sign = det.sign();
+        let adet = det.xor(sign);
+        let (t, u, v) = (t.xor(sign), u.xor(sign), v.xor(sign));
         let zero = F8::splat(0.0);
-        let ok = F8::splat(1e-12).le(det.abs())
+        let ok = F8::splat(1e-12).le(adet)
             & zero.le(u)
             & zero.le(v)
-            & (u + v).le(F8::splat(1.0))
+            & (u + v).le(adet)
             & zero.lt(t)
-            & t.lt(F8::splat(tmax));
-        (t, u, v, ok.bitmask())
+            & t.lt(F8::splat(tmax) * adet);
+        ([t, u, v, adet], ok.bitmask())
     }
 }
 
@@ -347,9 +345,11 @@ impl Accel {
             } else {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
                 for pi in leaf.tri_start..leaf.tri_end {
-                    let (t, u, v, mut mask) = r.triangles(&self.packets[pi as usize], tmax);
+                    let ([t, u, v, adet], mut mask) = r.triangles(&self.packets[pi as usize], tmax);
                     if mask != 0 {
-                        let t = t.to_array();
+                        // The deferred division, only for packets with a hit.
+                        let inv = F8::splat(1.0) / adet;
+                        let (t, u, v) = ((t * inv).to_array(), u * inv, v * inv);
                         let mut lane = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
                         while mask != 0 {
@@ -416,7 +416,7 @@ impl Accel {
             } else {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
                 for pi in leaf.tri_start..leaf.tri_end {
-                    if r.triangles(&self.packets[pi as usize], tmax).3 != 0 {
+                    if r.triangles(&self.packets[pi as usize], tmax).1 != 0 {
                         return true;
                     }
                 }
@@ -470,19 +470,21 @@ impl Collapse<'_> {
         let tris: Vec<usize> = items.iter().map(|&i| i as usize).filter(|&i| matches!(self.geoms[i], PrimGeom::Triangle { .. })).collect();
         for chunk in tris.chunks(PACKET) {
             // Unused lanes stay degenerate (all zero).
-            let mut f = [[[0.0f32; PACKET]; 3]; 3];
+            let mut f = [[[0.0f32; PACKET]; 3]; 4];
             let mut r = [self.refs[chunk[0]]; PACKET];
             for (lane, &i) in chunk.iter().enumerate() {
                 let PrimGeom::Triangle { v0, e1, e2 } = &self.geoms[i] else { unreachable!() };
+                let ng = e2.cross(*e1);
                 for k in 0..3 {
                     f[0][k][lane] = v0[k];
-                    f[1][k][lane] = e1[k];
+                    f[1][k][lane] = -e1[k];
                     f[2][k][lane] = e2[k];
+                    f[3][k][lane] = ng[k];
                 }
                 r[lane] = self.refs[i];
             }
             let v = |a: [[f32; PACKET]; 3]| a.map(F8::from_array);
-            a.packets.push(TriPacket { v0: v(f[0]), e1: v(f[1]), e2: v(f[2]) });
+            a.packets.push(TriPacket { v0: v(f[0]), e1n: v(f[1]), e2: v(f[2]), ng: v(f[3]) });
             a.packet_refs.push(r);
         }
         for &i in items {

@@ -545,13 +545,7 @@ impl Loader {
                 // A pinhole has everything in focus; the distance is accepted for Mitsuba compatibility.
                 props.float_checked("focus_distance", 1.0, |v| v > 0.0, "positive")?;
                 let fov_x = horizontal_fov(fov, axis, aspect);
-                Camera::Perspective(Perspective {
-                    to_world,
-                    tan_half_x: (fov_x.to_radians() * 0.5).tan(),
-                    aspect,
-                    near_clip,
-                    far_clip,
-                })
+                Camera::Perspective(Perspective::new(to_world, (fov_x.to_radians() * 0.5).tan(), aspect, near_clip, far_clip))
             }
             _ => Camera::Orthographic(Orthographic { to_world, aspect, near_clip, far_clip }),
         };

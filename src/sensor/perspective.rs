@@ -28,8 +28,14 @@ pub struct Perspective {
     pub aspect: f32,
     pub near_clip: f32,
     pub far_clip: f32,
+    /// Precomputed so a camera ray costs two multiply-adds and one
+    /// normalisation: the world-space origin, and the world-space images of
+    /// the camera's x and y half-extents at depth 1 and of its axis.
+    origin: Vec3,
+    half_x: Vec3,
+    half_y: Vec3,
+    axis: Vec3,
 }
-
 /// The horizontal field of view (degrees) for a `fov` given along `axis`.
 pub fn horizontal_fov(fov: f32, axis: &str, aspect: f32) -> f32 {
     let axis = match axis {
@@ -50,20 +56,36 @@ pub fn horizontal_fov(fov: f32, axis: &str, aspect: f32) -> f32 {
 }
 
 impl Perspective {
+    pub fn new(to_world: Transform, tan_half_x: f32, aspect: f32, near_clip: f32, far_clip: f32) -> Perspective {
+        let tan_half_y = tan_half_x / aspect;
+        Perspective {
+            origin: to_world.point(Vec3::ZERO),
+            half_x: to_world.vector(Vec3::new(tan_half_x, 0.0, 0.0)),
+            half_y: to_world.vector(Vec3::new(0.0, tan_half_y, 0.0)),
+            axis: to_world.vector(Vec3::Z),
+            to_world,
+            tan_half_x,
+            aspect,
+            near_clip,
+            far_clip,
+        }
+    }
+
+    /// The ray through film position `film` ∈ [0,1]² (top left (0,0)),
+    /// starting at the near clip plane and ending at the far one.
     #[inline]
     pub fn generate_ray(&self, film: Vec2) -> Ray {
-        let local = Vec3::new(
-            (1.0 - 2.0 * film.x) * self.tan_half_x,
-            (1.0 - 2.0 * film.y) * self.tan_half_x / self.aspect,
-            1.0,
-        )
-        .normalize();
-        let inv_z = 1.0 / local.z;
-        let t_near = self.near_clip * inv_z;
-        let t_far = self.far_clip * inv_z;
-        let o = self.to_world.point(Vec3::ZERO);
-        let d = self.to_world.vector(local).normalize();
-        Ray { o: o + d * t_near, d, tmax: t_far - t_near }
+        // Camera space: (x, y, 1) through the film point; its length converts
+        // clip depths along the axis into distances along the ray.
+        let (sx, sy) = (1.0 - 2.0 * film.x, 1.0 - 2.0 * film.y);
+        let local_len = (sx * sx * self.tan_half_x * self.tan_half_x
+            + sy * sy * (self.tan_half_x / self.aspect) * (self.tan_half_x / self.aspect)
+            + 1.0)
+            .sqrt();
+        let d = (self.half_x * sx + self.half_y * sy + self.axis).normalize();
+        let t_near = self.near_clip * local_len;
+        let t_far = self.far_clip * local_len;
+        Ray { o: self.origin + d * t_near, d, tmax: t_far - t_near }
     }
 }
 
@@ -86,7 +108,7 @@ mod tests {
     #[test]
     fn image_corners_follow_mitsuba() {
         let to_world = Transform::look_at(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y).unwrap();
-        let cam = Perspective { to_world, tan_half_x: 1.0, aspect: 1.0, near_clip: 0.0, far_clip: 100.0 };
+        let cam = Perspective::new(to_world, 1.0, 1.0, 0.0, 100.0);
         let top_left = cam.generate_ray(Vec2::new(0.0, 0.0));
         // Looking down -z with +y up, the image's left is world -x and its top world +y.
         assert!(top_left.d.x < 0.0 && top_left.d.y > 0.0 && top_left.d.z < 0.0);

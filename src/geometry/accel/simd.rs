@@ -49,10 +49,6 @@ mod imp {
             F8(unsafe { _mm256_max_ps(self.0, o.0) })
         }
         #[inline(always)]
-        pub fn abs(self) -> F8 {
-            F8(unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0) })
-        }
-        #[inline(always)]
         pub fn lt(self, o: F8) -> F8 {
             F8(unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(self.0, o.0) })
         }
@@ -63,6 +59,15 @@ mod imp {
         #[inline(always)]
         pub fn bitmask(self) -> u32 {
             unsafe { _mm256_movemask_ps(self.0) as u32 }
+        }
+        /// The sign bits alone.
+        #[inline(always)]
+        pub fn sign(self) -> F8 {
+            F8(unsafe { _mm256_and_ps(_mm256_set1_ps(-0.0), self.0) })
+        }
+        #[inline(always)]
+        pub fn xor(self, o: F8) -> F8 {
+            F8(unsafe { _mm256_xor_ps(self.0, o.0) })
         }
     }
 
@@ -134,10 +139,6 @@ mod imp {
             map2(self, o, |a, b| if a > b { a } else { b })
         }
         #[inline(always)]
-        pub fn abs(self) -> F8 {
-            F8(self.0.map(f32::abs))
-        }
-        #[inline(always)]
         pub fn lt(self, o: F8) -> F8 {
             map2(self, o, |a, b| mask(a < b))
         }
@@ -148,6 +149,14 @@ mod imp {
         #[inline(always)]
         pub fn bitmask(self) -> u32 {
             (0..8).fold(0, |m, i| m | ((self.0[i].to_bits() >> 31) << i))
+        }
+        #[inline(always)]
+        pub fn sign(self) -> F8 {
+            F8(self.0.map(|x| f32::from_bits(x.to_bits() & 0x8000_0000)))
+        }
+        #[inline(always)]
+        pub fn xor(self, o: F8) -> F8 {
+            map2(self, o, |a, b| f32::from_bits(a.to_bits() ^ b.to_bits()))
         }
     }
 
@@ -201,11 +210,12 @@ mod tests {
         assert_eq!((a * b).to_array(), [2.0, -4.0, 6.0, -8.0, 10.0, -12.0, 14.0, f32::INFINITY]);
         assert_eq!(a.mul_sub(b, b).to_array()[0], 0.0);
         assert_eq!(a.mul_add(b, b).to_array()[1], -2.0);
-        assert_eq!(a.abs().to_array()[5], 6.0);
         assert_eq!(a.lt(b).bitmask(), 0b0010_1011);
         assert_eq!(a.le(F8::splat(1.0)).bitmask(), 0b0010_1011);
         assert_eq!((a.lt(b) & a.le(F8::splat(-3.0))).bitmask(), 0b0010_1000);
         assert_eq!(a.min(b).max(F8::splat(0.0)).to_array(), [1.0, 0.0, 2.0, 0.0, 2.0, 0.0, 2.0, 2.0]);
         assert_eq!((a / b - b + b).to_array()[2], 1.5);
+        assert_eq!(a.sign().bitmask(), 0b0010_1010);
+        assert_eq!(a.xor(a.sign()).to_array(), a.to_array().map(f32::abs));
     }
 }
