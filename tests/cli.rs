@@ -139,6 +139,23 @@ fn stats_json() {
 }
 
 #[test]
+fn spectral_mode() {
+    let (dir, scene) = setup("spectral");
+    let (rgb, spectral, stats) = (dir.join("rgb.exr"), dir.join("spectral.exr"), dir.join("stats.json"));
+    assert_success(&snell(&["render", s(&scene), "-o", s(&rgb), "-q"], &dir));
+    assert_success(&snell(&["render", s(&scene), "-o", s(&spectral), "--mode", "spectral", "--stats", s(&stats), "-q"], &dir));
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(json["mode"], "spectral");
+    // A different image (wavelength noise, uplifted colours), of about the same brightness.
+    let (a, b) = (read_exr(&rgb), read_exr(&spectral));
+    assert_ne!(a.pixels, b.pixels);
+    let mean = |img: &snell::film::Image| img.pixels.iter().map(|p| p.mean()).sum::<f32>() / img.pixels.len() as f32;
+    assert!((mean(&a) / mean(&b) - 1.0).abs() < 0.2, "rgb {} vs spectral {}", mean(&a), mean(&b));
+    let err = assert_failure(&snell(&["render", s(&scene), "--mode", "polarized"], &dir));
+    assert!(err.contains("rgb") && err.contains("spectral"), "{err}");
+}
+
+#[test]
 fn spp_and_defines_take_effect() {
     let (dir, scene) = setup("overrides");
     let (exr, stats) = (dir.join("o.exr"), dir.join("stats.json"));

@@ -7,9 +7,14 @@
 //! into the path's spectrum type at the point of use, given the path's
 //! wavelengths.
 
+pub mod cie;
+mod cie_data;
 mod rgb;
+pub mod sampled;
+pub mod uplift;
 
 pub use rgb::Rgb;
+pub use sampled::Sampled;
 
 use std::fmt::Debug;
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign};

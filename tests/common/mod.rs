@@ -19,6 +19,17 @@ pub fn params(list: &[(&str, &str)]) -> HashMap<String, String> {
 
 /// Renders `passes` independent images (seeds 1..=passes) of `spp` samples each.
 pub fn render_passes(scene: &Path, text: Option<&str>, params: HashMap<String, String>, passes: u32, spp: u32) -> Vec<Image> {
+    render_passes_as::<Rgb>(scene, text, params, passes, spp)
+}
+
+/// As [`render_passes`], with paths carrying the spectrum type `S`.
+pub fn render_passes_as<S: snell::spectrum::Spectrum>(
+    scene: &Path,
+    text: Option<&str>,
+    params: HashMap<String, String>,
+    passes: u32,
+    spp: u32,
+) -> Vec<Image> {
     let options = LoadOptions { params, spp: Some(spp), seed: None };
     let mut scene = match text {
         Some(t) => snell::load_str(scene, t, &options),
@@ -28,7 +39,7 @@ pub fn render_passes(scene: &Path, text: Option<&str>, params: HashMap<String, S
     (1..=passes)
         .map(|seed| {
             scene.sampler.seed = seed as u64 * 7919;
-            snell::render::<Rgb>(&scene, &RenderOptions::default()).expect("render").0
+            snell::render::<S>(&scene, &RenderOptions::default()).expect("render").0
         })
         .collect()
 }
