@@ -14,6 +14,11 @@
 //! with light travelling from medium t to medium i. Importance (light-tracing
 //! paths, `TransportMode::Importance`) is not scaled.
 //!
+//! Dispersion: if `int_ior` or `ext_ior` depends on the wavelength
+//! (`dispersion.rs`), spectral mode refracts by η(λ) of the path's hero
+//! wavelength and the integrator then drops the other wavelengths (they
+//! would leave in other directions); RGB mode uses η at the d line.
+//!
 //! `eta` = int_ior / ext_ior; the normal points outside. Both sides refract,
 //! so the surface of a closed object is the boundary of a solid of glass.
 //! Both lobes are deltas: `eval` and `pdf` are zero.
