@@ -4,7 +4,8 @@
 By default two scenes: the Cornell box (diffuse) and the caustic Cornell box
 (glass and metal spheres: long specular paths); --scene (repeatable) picks others.
 For each scene, Snell and then Mitsuba run back to back, so both see the same
-machine load.
+machine load. --modes rgb,spectral adds Snell's spectral mode against Mitsuba's
+llvm_ad_spectral (the spectral overhead is the spectral/rgb ratio of each).
 
 Snell half: runs, N times,
   target/release/snell render SCENE -o /tmp/bench.exr --spp 256 -D res=512 \
@@ -60,7 +61,7 @@ def bench_snell(args, params):
     cmd = [exe, "render", args.scene, "-o", "/tmp/bench.exr", "--spp", str(args.spp)]
     for k, v in params.items():
         cmd += ["-D", f"{k}={v}"]
-    cmd += ["--threads", str(args.threads), "--stats", "/tmp/stats.json"]
+    cmd += ["--threads", str(args.threads), "--stats", "/tmp/stats.json", "--mode", args.mode]
     print("snell: " + " ".join(cmd))
     sps, secs = [], []
     for i in range(args.runs):
@@ -88,7 +89,7 @@ def mitsuba_worker(args, params):
     import drjit as dr
     import mitsuba as mi
 
-    mi.set_variant("llvm_ad_rgb")
+    mi.set_variant("llvm_ad_spectral" if args.mode == "spectral" else "llvm_ad_rgb")
     dr.set_thread_count(args.threads)
     scene = mi.load_file(args.scene, **params)
     w, h = scene.sensors()[0].film().size()
@@ -126,10 +127,11 @@ def bench_mitsuba(args):
         return None
     env = dict(os.environ)
     env.setdefault("DRJIT_LIBLLVM_PATH", LLVM_LIB)
-    print(f"mitsuba: llvm_ad_rgb, {args.threads} threads, via {py}")
+    variant = "llvm_ad_spectral" if args.mode == "spectral" else "llvm_ad_rgb"
+    print(f"mitsuba: {variant}, {args.threads} threads, via {py}")
     argv = ["--mitsuba-worker", "--scene", args.scene, "--spp", str(args.spp),
             "--res", str(args.res), "--max-depth", str(args.max_depth),
-            "--threads", str(args.threads), "--runs", str(args.runs)]
+            "--threads", str(args.threads), "--runs", str(args.runs), "--mode", args.mode]
     for kv in args.defines:
         argv += ["-D", kv]
     r = subprocess.run([py, os.path.abspath(__file__)] + argv,
@@ -147,8 +149,8 @@ def bench_scene(args):
     """Snell then Mitsuba on args.scene; prints and returns the figures."""
     params = scene_params(args.scene, args.res, args.max_depth, args.defines)
     rel = os.path.relpath(args.scene, ROOT)
-    print(f"== {rel}: {args.res}², {args.spp} spp, {params}, {args.threads} threads")
-    res = {"scene": rel, "spp": args.spp, "params": params, "threads": args.threads}
+    print(f"== {rel} ({args.mode}): {args.res}², {args.spp} spp, {params}, {args.threads} threads")
+    res = {"scene": rel, "mode": args.mode, "spp": args.spp, "params": params, "threads": args.threads}
     res["snell"] = None if args.no_snell else bench_snell(args, params)
     res["mitsuba"] = None if args.no_mitsuba else bench_mitsuba(args)
     s, m = res["snell"], res["mitsuba"]
@@ -181,6 +183,10 @@ def main():
     ap.add_argument("--no-snell", action="store_true")
     ap.add_argument("--no-mitsuba", action="store_true")
     ap.add_argument("--json", help="also write the results to this file")
+    ap.add_argument("--modes", default="rgb",
+                    help="comma-separated: rgb, spectral (Snell --mode; Mitsuba llvm_ad_rgb / "
+                         "llvm_ad_spectral); e.g. --modes rgb,spectral")
+    ap.add_argument("--mode", default="rgb", help=argparse.SUPPRESS)
     ap.add_argument("--mitsuba-worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     scenes = [os.path.join(ROOT, sc) if not os.path.isabs(sc) else sc
@@ -194,17 +200,22 @@ def main():
         mitsuba_worker(args, scene_params(args.scene, args.res, args.max_depth, args.defines))
         return
 
+    modes = [m.strip() for m in args.modes.split(",") if m.strip()]
+    bad = [m for m in modes if m not in ("rgb", "spectral")]
+    if bad:
+        sys.exit("error: unknown mode(s) " + ", ".join(bad) + " (valid: rgb, spectral)")
     results = []
     for sc in scenes:
-        args.scene = sc
-        results.append(bench_scene(args))
+        for mode in modes:
+            args.scene, args.mode = sc, mode
+            results.append(bench_scene(args))
     print("summary (M samples/s, median of %d runs)" % args.runs)
-    print(f"{'scene':<36} {'snell':>8} {'mitsuba':>8} {'ratio':>6}")
+    print(f"{'scene':<36} {'mode':<9} {'snell':>8} {'mitsuba':>8} {'ratio':>6}")
     for r in results:
         sn = r["snell"]["samples_per_second"] / 1e6 if r["snell"] else float("nan")
         mi_ = r["mitsuba"]["samples_per_second"] / 1e6 if r["mitsuba"] else float("nan")
         ra = r.get("ratio_snell_over_mitsuba", float("nan"))
-        print(f"{r['scene']:<36} {sn:8.3f} {mi_:8.3f} {ra:6.3f}")
+        print(f"{r['scene']:<36} {r['mode']:<9} {sn:8.3f} {mi_:8.3f} {ra:6.3f}")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(results, f, indent=2)
