@@ -54,22 +54,6 @@ fn unit_sphere_cos(ray: &Ray) -> Option<f32> {
 }
 
 /// `shapes` in a `constant` environment of radiance 1, path tracer, unlimited depth.
-fn furnace(shapes: &str, width: u32, height: u32) -> String {
-    format!(
-        r#"<scene version="3.0.0">
-        <integrator type="path"><integer name="max_depth" value="-1"/></integrator>
-        <sensor type="perspective">
-            <float name="fov" value="40"/>
-            <transform name="to_world"><lookat origin="0, 0.3, 4.5" target="0, 0, 0" up="0, 1, 0"/></transform>
-            <sampler type="independent"><integer name="sample_count" value="16"/></sampler>
-            <film type="hdrfilm"><integer name="width" value="{width}"/><integer name="height" value="{height}"/><rfilter type="box"/></film>
-        </sensor>
-        <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
-        {shapes}
-    </scene>"#
-    )
-}
-
 fn ones(w: u32, h: u32) -> Image {
     Image { width: w, height: h, pixels: vec![Rgb::WHITE; (w * h) as usize] }
 }

@@ -154,3 +154,21 @@ impl Comparison {
         assert!(self.max_z < 6.0, "{name}: block {:?} is {:.1} standard errors off", self.worst_block, self.max_z);
     }
 }
+
+/// A scene of `shapes` under a white constant environment (radiance 1),
+/// path traced without a depth limit, box filter: the furnace of energy tests.
+pub fn furnace(shapes: &str, width: u32, height: u32) -> String {
+    format!(
+        r#"<scene version="3.0.0">
+        <integrator type="path"><integer name="max_depth" value="-1"/></integrator>
+        <sensor type="perspective">
+            <float name="fov" value="40"/>
+            <transform name="to_world"><lookat origin="0, 0.3, 4.5" target="0, 0, 0" up="0, 1, 0"/></transform>
+            <sampler type="independent"><integer name="sample_count" value="16"/></sampler>
+            <film type="hdrfilm"><integer name="width" value="{width}"/><integer name="height" value="{height}"/><rfilter type="box"/></film>
+        </sensor>
+        <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+        {shapes}
+    </scene>"#
+    )
+}
