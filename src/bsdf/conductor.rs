@@ -27,6 +27,7 @@
 use super::fresnel::{fresnel_conductor, reflect};
 use super::{BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
+use super::metal_spectra::MetalSpectra;
 use crate::spectrum::{Rgb, Spectrum};
 use crate::texture::Texture;
 use glam::Vec3;
@@ -35,14 +36,18 @@ use glam::Vec3;
 pub struct Conductor {
     pub eta: Rgb,
     pub k: Rgb,
+    /// The measured spectra of a named metal, used in spectral modes.
+    pub spectra: Option<&'static MetalSpectra>,
     pub specular_reflectance: Texture,
 }
 
 impl Conductor {
     /// The Fresnel reflectance per channel for incidence cosine `cos_i`.
     pub fn fresnel<S: Spectrum>(&self, cos_i: f32, wl: &S::Wavelengths) -> S {
-        let eta = S::from_unbounded(self.eta, wl);
-        let k = S::from_unbounded(self.k, wl);
+        let (eta, k) = match self.spectra {
+            Some(m) => (S::from_function(self.eta, |l| tabulated(m.eta, l), wl), S::from_function(self.k, |l| tabulated(m.k, l), wl)),
+            None => (S::from_unbounded(self.eta, wl), S::from_unbounded(self.k, wl)),
+        };
         eta.zip_map(k, |e, k| fresnel_conductor(cos_i, e, k))
     }
 
@@ -56,6 +61,21 @@ impl Conductor {
     }
 }
 
+/// Linear interpolation in (λ, value) points; zero outside them (as
+/// Mitsuba's irregular spectra).
+fn tabulated(points: &[[f32; 2]], lambda: f32) -> f32 {
+    let i = points.partition_point(|p| p[0] < lambda);
+    if i == 0 || i == points.len() {
+        // Exactly on the first point, or outside the range.
+        return match points.first() {
+            Some(p) if i == 0 && p[0] == lambda => p[1],
+            _ => 0.0,
+        };
+    }
+    let ([l0, v0], [l1, v1]) = (points[i - 1], points[i]);
+    v0 + (v1 - v0) * (lambda - l0) / (l1 - l0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -67,6 +87,7 @@ mod tests {
         Bsdf::Conductor(Conductor {
             eta: Rgb::new(0.2, 0.45, 1.4),
             k: Rgb::new(3.6, 2.5, 1.9),
+            spectra: None,
             specular_reflectance: Texture::Constant(Rgb::WHITE),
         })
     }
@@ -98,5 +119,42 @@ mod tests {
         assert_eq!(b.pdf(&si, wi, Vec3::new(-wi.x, -wi.y, wi.z)), 0.0);
         let back = Vec3::new(wi.x, wi.y, -wi.z);
         assert!(b.sample::<Rgb>(&si, back, 0.5, Vec2::splat(0.5), TransportMode::Radiance, &()).is_none());
+    }
+
+    #[test]
+    fn measured_spectra_reduce_to_the_rgb_table() {
+        // Converting each metal's measured η(λ), k(λ) to linear sRGB as Mitsuba
+        // does (1000 wavelengths over 360–830 nm, CIE 1931, zero outside the
+        // data) gives back the RGB values of metals.rs: the spectra and
+        // `tabulated` agree with the table the RGB mode uses.
+        use crate::bsdf::metal_spectra::METAL_SPECTRA;
+        use crate::bsdf::metals::METALS;
+        use crate::spectrum::cie::{cie_xyz, xyz_to_linear_srgb};
+        let to_rgb = |points: &[[f32; 2]]| {
+            let mut xyz = [0.0f64; 3];
+            for i in 0..1000 {
+                let l = 360.0 + i as f32 / 999.0 * 470.0;
+                let c = cie_xyz(l);
+                let v = tabulated(points, l) as f64;
+                for k in 0..3 {
+                    xyz[k] += c[k] as f64 * v * 0.47 / 106.750_259_4;
+                }
+            }
+            xyz_to_linear_srgb(xyz.map(|v| v as f32)).map(|v| v.max(0.0))
+        };
+        assert_eq!(METAL_SPECTRA.len(), METALS.len());
+        for (spectra, metal) in METAL_SPECTRA.iter().zip(METALS) {
+            assert_eq!(spectra.name, metal.name);
+            for (points, rgb) in [(spectra.eta, metal.eta), (spectra.k, metal.k)] {
+                let got = to_rgb(points);
+                for c in 0..3 {
+                    assert!((got.0[c] - rgb[c]).abs() <= 2e-3 * (1.0 + rgb[c].abs()), "{}: {got:?} vs {rgb:?}", metal.name);
+                }
+            }
+        }
+        // Interpolation: exact at points, linear between, zero outside.
+        let p = [[400.0, 1.0], [500.0, 3.0]];
+        assert_eq!((tabulated(&p, 400.0), tabulated(&p, 450.0), tabulated(&p, 500.0)), (1.0, 2.0, 3.0));
+        assert_eq!((tabulated(&p, 399.0), tabulated(&p, 501.0)), (0.0, 0.0));
     }
 }

@@ -21,6 +21,7 @@ pub mod diffuse;
 pub mod dispersion;
 pub mod fresnel;
 pub mod ior;
+pub mod metal_spectra;
 pub mod metals;
 pub mod plastic;
 pub mod thindielectric;

@@ -389,6 +389,7 @@ impl Loader {
         let specular_reflectance = self.texture_input(props, "specular_reflectance", Rgb::WHITE)?;
         let material = props.string_opt("material")?;
         let given = props.has("eta") || props.has("k");
+        let mut spectra = None;
         let (eta, k) = match material {
             Some(name) if name != "none" => {
                 let loc = node.props.iter().find(|p| p.name == "material").map_or(&node.loc, |p| &p.loc);
@@ -400,6 +401,7 @@ impl Loader {
                     names.push("none");
                     SceneError::at(loc, format!("unknown conductor material \"{name}\"")).with_choices(&names)
                 })?;
+                spectra = crate::bsdf::metal_spectra::METAL_SPECTRA.iter().find(|m| m.name == name);
                 (Rgb(metal.eta), Rgb(metal.k))
             }
             _ => (props.color("eta", Rgb::BLACK)?, props.color("k", Rgb::WHITE)?),
@@ -407,7 +409,7 @@ impl Loader {
         if !(eta.is_finite() && k.is_finite() && eta.0.iter().chain(&k.0).all(|&v| v >= 0.0)) {
             return Err(SceneError::at(&node.loc, "conductor \"eta\" and \"k\" must be finite and not negative"));
         }
-        Ok(Bsdf::Conductor(Conductor { eta, k, specular_reflectance }))
+        Ok(Bsdf::Conductor(Conductor { eta, k, spectra, specular_reflectance }))
     }
 
     /// A colour parameter: `rgb`/`spectrum`/`float`, or a nested (or referenced) texture.

@@ -55,6 +55,9 @@ pub trait Spectrum:
     /// An unbounded per-channel quantity that is not a colour (e.g. a
     /// conductor's η and k) as this spectrum.
     fn from_unbounded(rgb: Rgb, wavelengths: &Self::Wavelengths) -> Self;
+    /// A quantity known both as RGB (used in RGB mode) and as a function of
+    /// the wavelength in nm (used in spectral modes), e.g. measured η(λ).
+    fn from_function(rgb: Rgb, f: impl Fn(f32) -> f32, wavelengths: &Self::Wavelengths) -> Self;
     /// Applies `f` channel by channel to `self` and `other`.
     fn zip_map(self, other: Self, f: impl Fn(f32, f32) -> f32) -> Self;
     /// The film's linear RGB value of this path's radiance estimate.

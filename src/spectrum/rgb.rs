@@ -119,6 +119,10 @@ impl Spectrum for Rgb {
         rgb
     }
     #[inline]
+    fn from_function(rgb: Rgb, _: impl Fn(f32) -> f32, _: &()) -> Self {
+        rgb
+    }
+    #[inline]
     fn zip_map(self, o: Rgb, f: impl Fn(f32, f32) -> f32) -> Self {
         Rgb([f(self.0[0], o.0[0]), f(self.0[1], o.0[1]), f(self.0[2], o.0[2])])
     }

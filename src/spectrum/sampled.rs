@@ -162,6 +162,9 @@ impl Spectrum for Sampled {
         let (scale, s) = RgbUplift::get().unbounded(rgb);
         Sampled::from_fn(|i| scale * s.eval(wl.lambda[i]))
     }
+    fn from_function(_: Rgb, f: impl Fn(f32) -> f32, wl: &Wavelengths) -> Self {
+        Sampled::from_fn(|i| f(wl.lambda[i]))
+    }
     #[inline]
     fn zip_map(self, o: Self, f: impl Fn(f32, f32) -> f32) -> Self {
         let (a, b) = (self.0.to_array(), o.0.to_array());
