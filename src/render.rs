@@ -2,7 +2,9 @@
 //! threads, merges them in a fixed order (so the image depends only on the
 //! scene and the seed, not on the thread count or timing) and reports progress.
 
-use crate::film::{Film, Image, TileBuffer};
+use crate::film::{Film, Filter, Image, TileBuffer};
+use crate::integrator::{Integrator, ParticleTracer};
+use crate::spectrum::Rgb;
 use crate::sampler::Sampler;
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;
@@ -42,8 +44,29 @@ pub struct RenderStats {
     pub invalid_samples: u64,
 }
 
+fn thread_count(options: &RenderOptions) -> usize {
+    if options.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { options.threads }
+}
+
+fn progress_bar(options: &RenderOptions, len: u64) -> ProgressBar {
+    if options.progress {
+        let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} rendering [{bar:40}] {percent:>3}% {elapsed_precise} (ETA {eta})")
+                .unwrap_or_else(|_| ProgressStyle::default_bar())
+                .progress_chars("=> "),
+        );
+        bar
+    } else {
+        ProgressBar::hidden()
+    }
+}
+
 pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Result<(Image, RenderStats)> {
-    let threads = if options.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { options.threads };
+    if let Integrator::Particle(tracer) = &scene.integrator {
+        return render_particles::<S>(scene, tracer, options);
+    }
+    let threads = thread_count(options);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
     let (w, h) = (scene.film.width, scene.film.height);
     let spp = scene.sampler.sample_count;
@@ -55,17 +78,7 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
             tiles.push((tx, ty, TILE.min(w - tx), TILE.min(h - ty)));
         }
     }
-    let bar = if options.progress {
-        let bar = ProgressBar::with_draw_target(Some(tiles.len() as u64), ProgressDrawTarget::stderr());
-        bar.set_style(
-            ProgressStyle::with_template("{spinner} rendering [{bar:40}] {percent:>3}% {elapsed_precise} (ETA {eta})")
-                .unwrap_or_else(|_| ProgressStyle::default_bar())
-                .progress_chars("=> "),
-        );
-        bar
-    } else {
-        ProgressBar::hidden()
-    };
+    let bar = progress_bar(options, tiles.len() as u64);
     let invalid = AtomicU64::new(0);
     let inv_size = Vec2::new(1.0 / w as f32, 1.0 / h as f32);
 
@@ -124,4 +137,129 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
         invalid_samples: invalid.into_inner(),
     };
     Ok((film.develop(), stats))
+}
+
+/// Light paths are split into this many batches whatever the thread count,
+/// and the batches' images summed in order: the image depends on the seed only.
+const PARTICLE_CHUNKS: u64 = 256;
+
+/// Particle tracing: `width · height · spp` light paths, each splatting its
+/// camera connections through the reconstruction filter (weights normalised
+/// per splat, so a splat deposits exactly its value), divided by the number
+/// of paths.
+fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options: &RenderOptions) -> anyhow::Result<(Image, RenderStats)> {
+    let threads = thread_count(options);
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+    let (w, h) = (scene.film.width, scene.film.height);
+    let spp = scene.sampler.sample_count;
+    let total = w as u64 * h as u64 * spp as u64;
+    let chunks = PARTICLE_CHUNKS.min(total.max(1));
+    let border = (scene.film.filter.radius() + 0.5).ceil() as usize;
+    let (bw, bh) = (w as usize + 2 * border, h as usize + 2 * border);
+    let bar = progress_bar(options, chunks);
+    let invalid = AtomicU64::new(0);
+    let mut sums = vec![[0.0f64; 3]; w as usize * h as usize];
+
+    let start = Instant::now();
+    let chunk_ids: Vec<u64> = (0..chunks).collect();
+    for batch in chunk_ids.chunks(threads.max(1)) {
+        let images: Vec<Vec<[f32; 3]>> = pool.install(|| {
+            batch
+                .par_iter()
+                .map(|&c| {
+                    let mut buf = vec![[0.0f32; 3]; bw * bh];
+                    let mut bad = 0u64;
+                    let (first, last) = (total * c / chunks, total * (c + 1) / chunks);
+                    for i in first..last {
+                        let mut sampler = Sampler::for_pixel(scene.sampler.seed ^ 0x7061_7274_6963_6c65, i as u32, (i >> 32) as u32 | 0x8000_0000);
+                        let mut wl = S::sample_wavelengths(sampler.next_1d());
+                        tracer.trace::<S>(scene, &mut sampler, &mut wl, &mut |pos, rgb| {
+                            if rgb.is_finite() {
+                                splat_normalized(&mut buf, bw, border, &scene.film.filter, pos, rgb);
+                            } else {
+                                bad += 1;
+                            }
+                        });
+                    }
+                    if bad > 0 {
+                        invalid.fetch_add(bad, Ordering::Relaxed);
+                    }
+                    bar.inc(1);
+                    buf
+                })
+                .collect()
+        });
+        for image in &images {
+            for y in 0..h as usize {
+                let row = &image[(y + border) * bw + border..(y + border) * bw + border + w as usize];
+                for (dst, src) in sums[y * w as usize..(y + 1) * w as usize].iter_mut().zip(row) {
+                    for k in 0..3 {
+                        dst[k] += src[k] as f64;
+                    }
+                }
+            }
+        }
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    let scale = 1.0 / total.max(1) as f64;
+    let pixels = sums
+        .iter()
+        .map(|s| {
+            let v = Rgb::new((s[0] * scale) as f32, (s[1] * scale) as f32, (s[2] * scale) as f32);
+            if v.is_finite() { v } else { Rgb::BLACK }
+        })
+        .collect();
+    let stats = RenderStats {
+        width: w,
+        height: h,
+        spp,
+        threads,
+        render_seconds: seconds,
+        samples_per_second: if seconds > 0.0 { total as f64 / seconds } else { 0.0 },
+        invalid_samples: invalid.into_inner(),
+    };
+    Ok((Image { width: w, height: h, pixels }, stats))
+}
+
+/// Adds `value` at film position `pos` (pixels) to a full-film buffer with a
+/// `border`-pixel margin, spread over the filter's footprint with weights
+/// that sum to one.
+fn splat_normalized(buf: &mut [[f32; 3]], stride: usize, border: usize, filter: &Filter, pos: Vec2, value: Rgb) {
+    const MAX: usize = 9;
+    let r = filter.radius();
+    let x0 = (pos.x - 0.5 - r).ceil() as i32;
+    let y0 = (pos.y - 0.5 - r).ceil() as i32;
+    let nx = (((pos.x - 0.5 + r).floor() as i32 - x0 + 1).max(0) as usize).min(MAX);
+    let ny = (((pos.y - 0.5 + r).floor() as i32 - y0 + 1).max(0) as usize).min(MAX);
+    let (mut wx, mut wy) = ([0.0f32; MAX], [0.0f32; MAX]);
+    for i in 0..nx {
+        wx[i] = filter.eval((x0 + i as i32) as f32 + 0.5 - pos.x);
+    }
+    for j in 0..ny {
+        wy[j] = filter.eval((y0 + j as i32) as f32 + 0.5 - pos.y);
+    }
+    let norm = wx[..nx].iter().sum::<f32>() * wy[..ny].iter().sum::<f32>();
+    if !(norm > 0.0) {
+        return;
+    }
+    let b = border as i32;
+    let height = (buf.len() / stride) as i32;
+    for j in 0..ny {
+        let y = y0 + j as i32 + b;
+        if y < 0 || y >= height || wy[j] == 0.0 {
+            continue;
+        }
+        for i in 0..nx {
+            let x = x0 + i as i32 + b;
+            if x < 0 || x >= stride as i32 {
+                continue;
+            }
+            let wgt = wx[i] * wy[j] / norm;
+            let px = &mut buf[y as usize * stride + x as usize];
+            for k in 0..3 {
+                px[k] += value.0[k] * wgt;
+            }
+        }
+    }
 }

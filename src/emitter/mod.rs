@@ -11,11 +11,13 @@ pub mod area;
 pub mod constant;
 pub mod directional;
 pub mod point;
+pub mod spot;
 
 pub use area::AreaLight;
 pub use constant::ConstantLight;
 pub use directional::DirectionalLight;
 pub use point::PointLight;
+pub use spot::SpotLight;
 
 use glam::Vec3;
 
@@ -25,11 +27,12 @@ pub enum Emitter {
     Point(PointLight),
     Constant(ConstantLight),
     Directional(DirectionalLight),
+    Spot(SpotLight),
 }
 
 impl Emitter {
     pub fn is_delta(&self) -> bool {
-        matches!(self, Emitter::Point(_) | Emitter::Directional(_))
+        matches!(self, Emitter::Point(_) | Emitter::Directional(_) | Emitter::Spot(_))
     }
 
     /// Emitters at infinity (seen by rays that leave the scene).

@@ -3,7 +3,7 @@
 
 use super::disk::Disk;
 use super::interaction::SurfaceInteraction;
-use super::mesh::{Mesh, area_pdf_to_solid_angle};
+use super::mesh::{Mesh, PositionSample, area_pdf_to_solid_angle};
 use super::sphere::{DirectionSample, Sphere};
 use crate::math::Frame;
 use glam::{Vec2, Vec3};
@@ -70,6 +70,15 @@ impl Shape {
         };
         let frame = Frame::from_normal(sh_n);
         SurfaceInteraction { p, t, n, frame, uv, shape: shape_index, wi: frame.to_local(-ray_d) }
+    }
+
+    /// A point uniformly distributed over the surface (by area).
+    pub fn sample_position(&self, u: Vec2) -> Option<PositionSample> {
+        match &self.geometry {
+            ShapeGeometry::Sphere(s) => Some(s.sample_position(u)),
+            ShapeGeometry::Mesh(m) => m.sample_position(u),
+            ShapeGeometry::Disk(d) => Some(d.sample_position(u)),
+        }
     }
 
     /// A direction from `p` towards this shape, for emitter sampling.

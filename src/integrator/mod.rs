@@ -5,9 +5,11 @@
 
 pub mod direct;
 pub mod path;
+pub mod ptracer;
 
 pub use direct::Direct;
 pub use path::PathTracer;
+pub use ptracer::ParticleTracer;
 
 use crate::geometry::Ray;
 use crate::sampler::Sampler;
@@ -18,6 +20,9 @@ use crate::spectrum::Spectrum;
 pub enum Integrator {
     Direct(Direct),
     Path(PathTracer),
+    /// Light paths splatted onto the film; rendered by its own driver
+    /// ([`crate::render`]), never through [`Integrator::li`].
+    Particle(ParticleTracer),
 }
 
 impl Integrator {
@@ -28,6 +33,7 @@ impl Integrator {
         match self {
             Integrator::Direct(d) => d.li(scene, ray, sampler, wl),
             Integrator::Path(p) => p.li(scene, ray, sampler, wl),
+            Integrator::Particle(_) => S::zero(),
         }
     }
 }

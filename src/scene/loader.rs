@@ -9,7 +9,7 @@ use super::xml::{self, Child, ChildTarget, Kind, Node};
 use super::Scene;
 use crate::bsdf::dispersion::DispersiveInterface;
 use crate::bsdf::{Bsdf, Conductor, Lobe, Dielectric, Diffuse, Plastic, ThinDielectric, TwoSided};
-use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, PointLight};
+use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, PointLight, SpotLight};
 use crate::film::{FilmSpec, Filter, FilterKind};
 use crate::geometry::accel::Accel;
 use crate::geometry::disk::Disk;
@@ -17,7 +17,7 @@ use crate::geometry::mesh::Mesh;
 use crate::geometry::mesh_io;
 use crate::geometry::sphere::Sphere;
 use crate::geometry::{Shape, ShapeGeometry};
-use crate::integrator::{Direct, Integrator, PathTracer};
+use crate::integrator::{Direct, Integrator, ParticleTracer, PathTracer};
 use crate::math::Transform;
 use crate::sampler::SamplerSpec;
 use crate::sensor::perspective::horizontal_fov;
@@ -33,12 +33,12 @@ use std::sync::Arc;
 pub const SHAPES: [&str; 6] = ["rectangle", "cube", "disk", "sphere", "obj", "ply"];
 pub const BSDFS: [&str; 6] = ["conductor", "dielectric", "diffuse", "plastic", "thindielectric", "twosided"];
 pub const TEXTURES: [&str; 2] = ["bitmap", "checkerboard"];
-pub const EMITTERS: [&str; 4] = ["area", "point", "constant", "directional"];
+pub const EMITTERS: [&str; 5] = ["area", "point", "spot", "constant", "directional"];
 pub const SENSORS: [&str; 2] = ["perspective", "orthographic"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 3] = ["box", "tent", "gaussian"];
 pub const SAMPLERS: [&str; 1] = ["independent"];
-pub const INTEGRATORS: [&str; 2] = ["direct", "path"];
+pub const INTEGRATORS: [&str; 3] = ["direct", "path", "ptracer"];
 
 /// What the command line can override.
 #[derive(Clone, Debug, Default)]
@@ -136,6 +136,7 @@ impl Loader {
     fn build(mut self, root: &Node, options: &LoadOptions) -> Result<Scene> {
         let mut sensor: Option<(Camera, FilmSpec, SamplerSpec)> = None;
         let mut integrator: Option<Integrator> = None;
+        let mut integrator_loc: Option<super::Location> = None;
         for child in &root.children {
             let node = match &child.target {
                 ChildTarget::Inline(n) => n.clone(),
@@ -163,6 +164,7 @@ impl Loader {
                         return Err(SceneError::at(&node.loc, "the scene has more than one <integrator>"));
                     }
                     integrator = Some(self.integrator(&node)?);
+                    integrator_loc = Some(node.loc.clone());
                 }
                 Kind::Film | Kind::Sampler | Kind::Rfilter => {
                     return Err(SceneError::at(&node.loc, format!("<{}> belongs inside a <sensor>", node.kind.tag())));
@@ -180,6 +182,18 @@ impl Loader {
         }
         let integrator =
             integrator.unwrap_or(Integrator::Path(PathTracer { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false }));
+        if let (Integrator::Particle(_), Some(loc)) = (&integrator, &integrator_loc) {
+            // A light path must start somewhere finite and end in a pinhole.
+            if !matches!(camera, Camera::Perspective(_)) {
+                return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic camera)")
+                    .with_choices(&["perspective"]));
+            }
+            if let Some(e) = self.emitters.iter().find(|e| matches!(e, Emitter::Constant(_) | Emitter::Directional(_))) {
+                let kind = if matches!(e, Emitter::Constant(_)) { "constant" } else { "directional" };
+                return Err(SceneError::at(loc, format!("ptracer cannot start light paths on a \"{kind}\" emitter; use the path integrator"))
+                    .with_choices(&["area", "point", "spot"]));
+            }
+        }
         let accel = Accel::build(&self.shapes);
         Ok(Scene {
             shapes: self.shapes,
@@ -491,6 +505,18 @@ impl Loader {
                     props.illuminant_opt("intensity")?.ok_or_else(|| SceneError::at(&node.loc, "point emitter needs \"intensity\""))?;
                 Emitter::Point(PointLight { position, intensity })
             }
+            "spot" => {
+                let to_world = props.transform("to_world")?;
+                let axis = to_world.vector(Vec3::Z).normalize_or_zero();
+                if axis == Vec3::ZERO {
+                    return Err(SceneError::at(&node.loc, "spot emitter's to_world collapses its axis"));
+                }
+                let intensity =
+                    props.illuminant_opt("intensity")?.ok_or_else(|| SceneError::at(&node.loc, "spot emitter needs \"intensity\""))?;
+                let cutoff = props.float_checked("cutoff_angle", 20.0, |a| a > 0.0 && a <= 90.0, "an angle in (0, 90] degrees")?;
+                let beam = props.float_checked("beam_width", cutoff * 0.75, |b| b > 0.0 && b <= cutoff, "an angle in (0, cutoff_angle] degrees")?;
+                Emitter::Spot(SpotLight::new(to_world.point(Vec3::ZERO), axis, intensity, cutoff, beam))
+            }
             "constant" => Emitter::Constant(ConstantLight { radiance: props.illuminant_opt("radiance")?.unwrap_or(Rgb::WHITE) }),
             "directional" => {
                 let to_world = props.transform("to_world")?;
@@ -615,6 +641,17 @@ impl Loader {
                 let max_depth = props.int_checked("max_depth", -1, |v| v >= -1, "-1 (unlimited) or a non-negative integer")?;
                 let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
                 Integrator::Path(PathTracer {
+                    max_depth: if max_depth < 0 { u32::MAX } else { max_depth.min(u32::MAX as i64) as u32 },
+                    rr_depth: rr_depth.min(u32::MAX as i64) as u32,
+                    hide_emitters: props.bool("hide_emitters", false)?,
+                })
+            }
+            "ptracer" => {
+                let max_depth = props.int_checked("max_depth", -1, |v| v >= -1, "-1 (unlimited) or a non-negative integer")?;
+                let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
+                // Mitsuba's work-splitting knob: no effect on the image.
+                props.int_checked("samples_per_pass", 1, |v| v > 0, "positive")?;
+                Integrator::Particle(ParticleTracer {
                     max_depth: if max_depth < 0 { u32::MAX } else { max_depth.min(u32::MAX as i64) as u32 },
                     rr_depth: rr_depth.min(u32::MAX as i64) as u32,
                     hide_emitters: props.bool("hide_emitters", false)?,

@@ -21,12 +21,27 @@ use crate::geometry::accel::Accel;
 use crate::geometry::ray::offset_origin;
 use crate::geometry::{Ray, Shape, SurfaceInteraction};
 use crate::integrator::Integrator;
-use crate::math::sampling::square_to_uniform_sphere;
+use crate::math::sampling::{square_to_cosine_hemisphere, square_to_uniform_cone, square_to_uniform_sphere, uniform_cone_pdf};
+use crate::math::{Frame, PI};
 use crate::math::{INV_FOUR_PI, SHADOW_EPSILON};
 use crate::sampler::SamplerSpec;
 use crate::sensor::Camera;
 use crate::spectrum::{Rgb, Spectrum};
 use glam::{Vec2, Vec3};
+
+/// The start of a light path.
+pub struct EmissionSample<S> {
+    pub ray: Ray,
+    /// The emitting point and its (shading) normal (zero for point lights).
+    pub p: Vec3,
+    pub n: Vec3,
+    /// Emitted radiance (or intensity) times cosine over the joint density
+    /// of point, direction and emitter choice: the light path's throughput.
+    pub weight: S,
+    /// For area lights: Le / (area density · selection), to connect the
+    /// emitting point itself to the camera (emitters seen directly).
+    pub position_weight: Option<S>,
+}
 
 pub struct Scene {
     pub shapes: Vec<Shape>,
@@ -159,6 +174,27 @@ impl Scene {
                     delta: true,
                 }
             }
+            Emitter::Spot(sl) => {
+                let v = sl.position - si.p;
+                let dist2 = v.length_squared();
+                if dist2 <= 0.0 {
+                    return None;
+                }
+                let dist = dist2.sqrt();
+                let falloff = sl.falloff(-v / dist);
+                if falloff <= 0.0 {
+                    return None;
+                }
+                EmitterSample {
+                    d: v / dist,
+                    dist,
+                    p: Some(sl.position),
+                    n: Vec3::ZERO,
+                    weight: S::from_illuminant(sl.intensity, wl) * (falloff / (dist2 * pmf)),
+                    pdf: 0.0,
+                    delta: true,
+                }
+            }
             Emitter::Directional(dl) => EmitterSample {
                 d: -dl.direction,
                 dist: f32::INFINITY,
@@ -192,5 +228,63 @@ impl Scene {
             return None;
         }
         Some(sample)
+    }
+
+    /// Starts a light path (particle tracing): picks an emitter uniformly, a
+    /// point on it and a direction leaving it. `None` for emitters a light
+    /// path cannot start from (the environment and directional lights, which
+    /// would need the scene's bounds; the loader refuses them with `ptracer`).
+    pub fn sample_emission<S: Spectrum>(&self, u_pick: f32, u_pos: Vec2, u_dir: Vec2, wl: &S::Wavelengths) -> Option<EmissionSample<S>> {
+        let n = self.emitters.len();
+        if n == 0 {
+            return None;
+        }
+        let index = ((u_pick * n as f32) as usize).min(n - 1);
+        let pmf = self.selection_pmf();
+        match &self.emitters[index] {
+            Emitter::Area(a) => {
+                let ps = self.shapes[a.shape as usize].sample_position(u_pos)?;
+                if !(ps.pdf_area > 0.0) || a.radiance.is_zero() {
+                    return None;
+                }
+                // Diffuse emission: cosine-weighted about the front side, so
+                // Le·cos/pdf = Le·π.
+                let local = square_to_cosine_hemisphere(u_dir);
+                let d = Frame::from_normal(ps.sh_n).to_world(local);
+                let position_weight = S::from_illuminant(a.radiance, wl) / (ps.pdf_area * pmf);
+                Some(EmissionSample {
+                    ray: Ray::new(offset_origin(ps.p, ps.n, d), d),
+                    p: ps.p,
+                    n: ps.sh_n,
+                    weight: position_weight * PI,
+                    position_weight: Some(position_weight),
+                })
+            }
+            Emitter::Point(pl) => {
+                let d = square_to_uniform_sphere(u_dir);
+                Some(EmissionSample {
+                    ray: Ray::new(pl.position, d),
+                    p: pl.position,
+                    n: Vec3::ZERO,
+                    weight: S::from_illuminant(pl.intensity, wl) * (4.0 * PI / pmf),
+                    position_weight: None,
+                })
+            }
+            Emitter::Spot(sl) => {
+                let d = Frame::from_normal(sl.axis).to_world(square_to_uniform_cone(u_dir, sl.cos_cutoff));
+                let falloff = sl.falloff(d);
+                if falloff <= 0.0 {
+                    return None;
+                }
+                Some(EmissionSample {
+                    ray: Ray::new(sl.position, d),
+                    p: sl.position,
+                    n: Vec3::ZERO,
+                    weight: S::from_illuminant(sl.intensity, wl) * (falloff / (uniform_cone_pdf(sl.cos_cutoff) * pmf)),
+                    position_weight: None,
+                })
+            }
+            Emitter::Constant(_) | Emitter::Directional(_) => None,
+        }
     }
 }

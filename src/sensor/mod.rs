@@ -8,7 +8,7 @@ pub mod orthographic;
 pub mod perspective;
 
 pub use orthographic::Orthographic;
-pub use perspective::Perspective;
+pub use perspective::{CameraConnection, Perspective};
 
 use crate::geometry::Ray;
 use glam::Vec2;

@@ -89,6 +89,52 @@ impl Perspective {
     }
 }
 
+/// A world point seen by the camera: where it lands on the film and how
+/// much it counts (for particle tracing, which splats light paths onto the film).
+#[derive(Clone, Copy, Debug)]
+pub struct CameraConnection {
+    /// Film position in [0,1]², as taken by `generate_ray`.
+    pub film: Vec2,
+    /// Unit direction from the point towards the pinhole, and the distance.
+    pub d: Vec3,
+    pub dist: f32,
+    /// The pinhole's importance for that direction, per unit solid angle and
+    /// per pixel: W·H / (A cos³θ), A = 4 tan(fov_x/2) tan(fov_y/2) the film's
+    /// area at unit depth. A pixel of a uniform-weight path-traced image is
+    /// the mean of L over its film area; dω = cos³θ dA at unit depth turns
+    /// that mean into ∫ L · importance dω over the pixel's directions.
+    pub importance: f32,
+}
+
+impl Perspective {
+    /// Projects world point `p` onto the film; `None` outside the image or
+    /// the clip range.
+    pub fn connect(&self, p: Vec3, width: u32, height: u32) -> Option<CameraConnection> {
+        let local = self.to_world.inverse_point(p);
+        if !(local.z >= self.near_clip && local.z <= self.far_clip) {
+            return None;
+        }
+        let tan_half_y = self.tan_half_x / self.aspect;
+        let (sx, sy) = (local.x / (local.z * self.tan_half_x), local.y / (local.z * tan_half_y));
+        if !(sx.abs() <= 1.0 && sy.abs() <= 1.0) {
+            return None;
+        }
+        let v = self.origin - p;
+        let dist = v.length();
+        if !(dist > 0.0) {
+            return None;
+        }
+        let cos_theta = local.z / local.length();
+        let area = 4.0 * self.tan_half_x * tan_half_y;
+        let importance = (width as f32 * height as f32) / (area * cos_theta * cos_theta * cos_theta);
+        Some(CameraConnection { film: Vec2::new(0.5 * (1.0 - sx), 0.5 * (1.0 - sy)), d: v / dist, dist, importance })
+    }
+
+    pub fn origin(&self) -> Vec3 {
+        self.origin
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -114,5 +160,33 @@ mod tests {
         assert!(top_left.d.x < 0.0 && top_left.d.y > 0.0 && top_left.d.z < 0.0);
         let centre = cam.generate_ray(Vec2::splat(0.5));
         assert!((centre.d - Vec3::new(0.0, 0.0, -1.0)).length() < 1e-6);
+    }
+
+    #[test]
+    fn connect_inverts_generate_ray() {
+        let to_world = Transform::look_at(Vec3::new(1.0, 2.0, 5.0), Vec3::ZERO, Vec3::Y).unwrap();
+        let cam = Perspective::new(to_world, 0.7, 1.5, 0.01, 100.0);
+        for &(x, y) in &[(0.1f32, 0.2f32), (0.5, 0.5), (0.93, 0.71)] {
+            let ray = cam.generate_ray(Vec2::new(x, y));
+            let c = cam.connect(ray.at(3.0), 96, 64).unwrap();
+            assert!((c.film - Vec2::new(x, y)).length() < 1e-4, "{:?}", c.film);
+            assert!((c.d + ray.d).length() < 1e-4);
+        }
+        // Importance integrates to the pixel count over the field of view:
+        // ∫ W·H/(A cos³θ) dω = W·H, since dω = cos³θ dA at unit depth.
+        let n = 400;
+        let mut sum = 0.0f64;
+        for j in 0..n {
+            for i in 0..n {
+                let film = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                let ray = cam.generate_ray(film);
+                let c = cam.connect(ray.at(2.0), 96, 64).unwrap();
+                let local = cam.to_world.inverse_vector(ray.d);
+                let cos = local.z / local.length();
+                let d_area = 4.0 * 0.7 * (0.7 / 1.5) / (n * n) as f32;
+                sum += (c.importance * d_area * cos * cos * cos) as f64;
+            }
+        }
+        assert!((sum / (96.0 * 64.0) - 1.0).abs() < 1e-3, "{sum}");
     }
 }

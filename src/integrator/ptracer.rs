@@ -1,0 +1,149 @@
+//! `ptracer` — particle tracing: paths start on the emitters and every
+//! vertex they reach on a non-delta surface is connected to the camera.
+//!
+//! The adjoint of `path`: where a camera path must stumble on a small light
+//! through glass (a caustic on a diffuse screen, light through a prism), a
+//! light path goes there directly and only the last, diffuse, step needs a
+//! connection. Each light path leaves an emitter with throughput
+//! β₀ = Le·|cos θ₀| / (p_A · p_ω · p_emitter); at a vertex x reached with β
+//! it adds, at the film position where x projects,
+//!
+//! β · f(ω_in, ω_cam) |cos θ_cam| · importance(ω_cam) / ‖x − camera‖²
+//!
+//! (the geometry term's other cosine is the one the light path already paid
+//! for by sampling ω_in by solid angle). BSDFs are sampled in
+//! [`TransportMode::Importance`] (no η² on refraction) and with Veach's
+//! correction for shading normals. `N = width · height · spp` light paths
+//! make an image whose expected value is the `path` integrator's.
+//!
+//! | parameter | type | default | meaning |
+//! |---|---|---|---|
+//! | `max_depth` | integer | -1 | longest path in segments, counting the one into the camera; 1 = emitters seen directly |
+//! | `rr_depth` | integer | 5 | depth at which Russian roulette starts |
+//! | `hide_emitters` | boolean | false | do not show emitters seen directly |
+//! | `samples_per_pass` | integer | — | accepted for Mitsuba compatibility (scheduling only) |
+//!
+//! Emitters: `area`, `point`, `spot` (a path has to start somewhere finite);
+//! sensor: `perspective` (a pinhole can be connected to; an orthographic
+//! camera cannot).
+//!
+//! ```xml
+//! <integrator type="ptracer"><integer name="max_depth" value="8"/></integrator>
+//! ```
+
+use crate::bsdf::{Lobe, TransportMode};
+use crate::geometry::{Ray, SurfaceInteraction};
+use crate::math::SHADOW_EPSILON;
+use crate::sampler::Sampler;
+use crate::scene::Scene;
+use crate::sensor::Camera;
+use crate::spectrum::{Rgb, Spectrum};
+use glam::{Vec2, Vec3};
+
+#[derive(Clone, Debug)]
+pub struct ParticleTracer {
+    /// `u32::MAX` for unlimited.
+    pub max_depth: u32,
+    pub rr_depth: u32,
+    pub hide_emitters: bool,
+}
+
+impl ParticleTracer {
+    /// Traces one light path and hands every contribution to `splat` as
+    /// (film position in pixels, RGB value). Values are per light path; the
+    /// driver divides by the number of paths.
+    pub fn trace<S: Spectrum>(&self, scene: &Scene, sampler: &mut Sampler, wl: &mut S::Wavelengths, splat: &mut impl FnMut(Vec2, Rgb)) {
+        let Camera::Perspective(camera) = &scene.camera else { return };
+        let (width, height) = (scene.film.width, scene.film.height);
+        let size = Vec2::new(width as f32, height as f32);
+        let Some(em) = scene.sample_emission::<S>(sampler.next_1d(), sampler.next_2d(), sampler.next_2d(), wl) else { return };
+
+        // Emitters seen directly: the emitting point itself, one segment.
+        if let Some(position_weight) = em.position_weight.filter(|_| !self.hide_emitters && self.max_depth >= 1) {
+            if let Some(c) = camera.connect(em.p, width, height) {
+                let cos = em.n.dot(c.d);
+                if cos > 0.0 && self.visible(scene, em.p, em.n, camera.origin(), c.d) {
+                    let value: S = position_weight * (cos * c.importance / (c.dist * c.dist));
+                    splat(c.film * size, value.to_rgb(wl));
+                }
+            }
+        }
+
+        let mut beta = em.weight;
+        let beta_start = beta.max_component();
+        if !(beta_start > 0.0) {
+            return;
+        }
+        let mut ray = em.ray;
+        // Segments traced so far (emitter → … → current vertex).
+        let mut segments = 0u32;
+        loop {
+            let Some(si) = scene.intersect(&ray) else { break };
+            segments += 1;
+            // Connecting this vertex to the camera adds one more segment.
+            if segments.saturating_add(1) > self.max_depth {
+                break;
+            }
+            let bsdf = scene.bsdf(&si);
+            if bsdf.lobes().intersects(Lobe::SMOOTH) {
+                if let Some(c) = camera.connect(si.p, width, height) {
+                    let wo = si.to_local(c.d);
+                    let f: S = bsdf.eval(&si, si.wi, wo, wl);
+                    let correction = shading_correction(&si, si.wi, wo);
+                    if !f.is_zero() && correction > 0.0 && self.visible(scene, si.p, si.n, camera.origin(), c.d) {
+                        let value = beta * f * (correction * c.importance / (c.dist * c.dist));
+                        splat(c.film * size, value.to_rgb(wl));
+                    }
+                }
+            }
+            if segments.saturating_add(2) > self.max_depth {
+                break;
+            }
+            if bsdf.disperses() {
+                S::terminate_secondary(wl);
+            }
+            let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), TransportMode::Importance, wl) else { break };
+            let correction = shading_correction(&si, si.wi, bs.wo);
+            beta *= bs.weight * correction;
+            let d = si.to_world(bs.wo);
+            ray = Ray::new(si.spawn_origin(d), d);
+
+            // Russian roulette on the throughput relative to the emitted one.
+            let t_max = beta.max_component() / beta_start;
+            if !(t_max > 0.0) {
+                break;
+            }
+            if segments >= self.rr_depth {
+                let q = t_max.min(0.95);
+                if !(sampler.next_1d() < q) {
+                    break;
+                }
+                beta *= 1.0 / q;
+            }
+        }
+    }
+
+    /// Whether the segment from surface point `p` (normal `n`, zero for a
+    /// point light) to the pinhole is free.
+    fn visible(&self, scene: &Scene, p: Vec3, n: Vec3, eye: Vec3, d: Vec3) -> bool {
+        let o = if n != Vec3::ZERO { crate::geometry::ray::offset_origin(p, n, d) } else { p };
+        let v = eye - o;
+        let len = v.length();
+        len > 0.0 && !scene.occluded(&Ray { o, d: v / len, tmax: len * (1.0 - SHADOW_EPSILON) })
+    }
+}
+
+/// Veach's correction for shading normals on light paths: the adjoint BSDF
+/// of a surface whose shading normal differs from its geometric one is
+/// f · |ω_in·n_s| |ω_out·n_g| / (|ω_in·n_g| |ω_out·n_s|) (1 on flat faces).
+#[inline]
+fn shading_correction(si: &SurfaceInteraction, wi_local: Vec3, wo_local: Vec3) -> f32 {
+    let ng = si.to_local(si.n);
+    let (in_ng, out_ng) = (wi_local.dot(ng), wo_local.dot(ng));
+    let (in_ns, out_ns) = (wi_local.z, wo_local.z);
+    let den = in_ng.abs() * out_ns.abs();
+    if !(den > 0.0) {
+        return 0.0;
+    }
+    (in_ns.abs() * out_ng.abs()) / den
+}
