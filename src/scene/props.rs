@@ -7,6 +7,7 @@ use super::xml::{Child, Kind, Node, Value};
 use crate::bsdf::dispersion::IorSpectrum;
 use crate::math::Transform;
 use crate::spectrum::Rgb;
+use crate::spectrum::cie::spectrum_to_linear_srgb;
 use glam::Vec3;
 use std::cell::Cell;
 
@@ -219,6 +220,7 @@ impl<'a> Props<'a> {
             None => Ok(None),
             Some((_, Value::Rgb(c))) => Ok(Some(Rgb(*c))),
             Some((_, Value::Spectrum(s))) => Ok(Some(Rgb([*s; 3]))),
+            Some((_, Value::SpectrumList(v))) => Ok(Some(spectrum_to_linear_srgb(v, false))),
             Some((_, Value::Float(f))) => Ok(Some(Rgb([*f as f32; 3]))),
             Some((_, Value::Integer(v))) => Ok(Some(Rgb([*v as f32; 3]))),
             Some((i, _)) => Err(self.type_error(i, "rgb, spectrum or float")),
@@ -229,8 +231,10 @@ impl<'a> Props<'a> {
     /// light, whose linear-sRGB value is not grey: Mitsuba's RGB variants
     /// scale it by the sRGB coordinates of the equal-energy white point.
     pub fn illuminant_opt(&self, name: &str) -> Result<Option<Rgb>> {
-        if let Some((_, Value::Spectrum(v))) = self.find(name) {
-            return Ok(Some(EQUAL_ENERGY_WHITE * *v));
+        match self.find(name) {
+            Some((_, Value::Spectrum(v))) => return Ok(Some(EQUAL_ENERGY_WHITE * *v)),
+            Some((_, Value::SpectrumList(v))) => return Ok(Some(spectrum_to_linear_srgb(v, true))),
+            _ => {}
         }
         self.color_opt(name)
     }

@@ -68,6 +68,8 @@ pub enum Value {
     Rgb([f32; 3]),
     /// A `<spectrum>` with one constant value.
     Spectrum(f32),
+    /// A `<spectrum>` given as `wavelength:value` pairs (nm), increasing.
+    SpectrumList(Vec<(f32, f32)>),
     Point(Vec3),
     Vector(Vec3),
     Transform(Transform),
@@ -81,7 +83,7 @@ impl Value {
             Value::Boolean(_) => "boolean",
             Value::String(_) => "string",
             Value::Rgb(_) => "rgb",
-            Value::Spectrum(_) => "spectrum",
+            Value::Spectrum(_) | Value::SpectrumList(_) => "spectrum",
             Value::Point(_) => "point",
             Value::Vector(_) => "vector",
             Value::Transform(_) => "transform",
@@ -387,13 +389,16 @@ impl Parser {
                 let s = self.req_attr(file, x, "value")?;
                 match parse_list(&s) {
                     Some(v) if v.len() == 1 => Value::Spectrum(v[0] as f32),
-                    _ => {
-                        return Err(SceneError::at(
-                            &attr_loc(file, x, "value"),
-                            format!("spectrum \"{s}\" is not a single constant value"),
-                        )
-                        .with_help("the RGB mode reads constant spectra only, e.g. <spectrum name=\"reflectance\" value=\"0.5\"/>"));
-                    }
+                    _ => match parse_spectrum_pairs(&s) {
+                        Some(pairs) => Value::SpectrumList(pairs),
+                        None => {
+                            return Err(SceneError::at(
+                                &attr_loc(file, x, "value"),
+                                format!("spectrum \"{s}\" is neither a constant nor a list of wavelength:value pairs"),
+                            )
+                            .with_help("e.g. value=\"0.5\" or value=\"400:0.1, 500:0.4, 600:0.8\" (wavelengths in nm, increasing)"));
+                        }
+                    },
                 }
             }
             "point" | "vector" => {
@@ -519,6 +524,7 @@ fn value_is_finite(v: &Value) -> bool {
         Value::Float(f) => f.is_finite(),
         Value::Rgb(c) => c.iter().all(|x| x.is_finite()),
         Value::Spectrum(s) => s.is_finite(),
+        Value::SpectrumList(v) => v.iter().all(|(l, x)| l.is_finite() && x.is_finite()),
         Value::Point(p) | Value::Vector(p) => p.is_finite(),
         Value::Transform(t) => t.matrix.is_finite(),
         _ => true,
@@ -534,4 +540,18 @@ fn parse_list(s: &str) -> Option<Vec<f64>> {
     let v: Option<Vec<f64>> =
         s.split(|c: char| c == ',' || c.is_whitespace()).filter(|t| !t.is_empty()).map(parse_f64).collect();
     v.filter(|v| !v.is_empty())
+}
+
+/// `"400:0.1, 500:0.4, …"`: at least two pairs, wavelengths strictly increasing.
+fn parse_spectrum_pairs(text: &str) -> Option<Vec<(f32, f32)>> {
+    let mut pairs = vec![];
+    for item in text.split(',') {
+        let (l, v) = item.trim().split_once(':')?;
+        let (l, v) = (l.trim().parse::<f32>().ok()?, v.trim().parse::<f32>().ok()?);
+        if !(l.is_finite() && v.is_finite() && l > 0.0) || pairs.last().is_some_and(|&(prev, _)| l <= prev) {
+            return None;
+        }
+        pairs.push((l, v));
+    }
+    (pairs.len() >= 2).then_some(pairs)
 }

@@ -70,6 +70,40 @@ pub fn d65_normalization() -> f32 {
     (1.0 / integrals().d65_y) as f32
 }
 
+/// Linear sRGB of a spectrum given as (wavelength nm, value) pairs with
+/// increasing wavelengths, linear in between and zero outside (Mitsuba's
+/// irregular spectrum). A reflectance (`illuminant = false`) is seen under
+/// D65, so the constant 1 gives (1, 1, 1); an emission spectrum is taken as
+/// is, so the constant 1 gives the equal-energy white with Y = 1. This is the
+/// conversion Mitsuba's RGB variants make when they read such a spectrum.
+pub fn spectrum_to_linear_srgb(samples: &[(f32, f32)], illuminant: bool) -> Rgb {
+    let value = |lambda: f32| -> f32 {
+        let i = samples.partition_point(|&(l, _)| l <= lambda);
+        if i == 0 || i == samples.len() && samples[samples.len() - 1].0 < lambda {
+            return 0.0;
+        }
+        if i == samples.len() {
+            return samples[i - 1].1;
+        }
+        let ((l0, v0), (l1, v1)) = (samples[i - 1], samples[i]);
+        v0 + (v1 - v0) * (lambda - l0) / (l1 - l0)
+    };
+    let mut xyz = [0.0f64; 3];
+    let mut norm = 0.0f64;
+    for i in 0..SAMPLES {
+        let lambda = 360.0 + i as f32;
+        let w = if i == 0 || i == SAMPLES - 1 { 0.5 } else { 1.0 };
+        let light = if illuminant { 1.0 } else { d65(lambda) };
+        let cmf = cie_xyz(lambda);
+        let v = value(lambda) * light;
+        for c in 0..3 {
+            xyz[c] += w * (v * cmf[c]) as f64;
+        }
+        norm += w * (light * cmf[1]) as f64;
+    }
+    xyz_to_linear_srgb(xyz.map(|v| (v / norm) as f32))
+}
+
 /// XYZ → linear sRGB (Rec. 709 primaries, D65 white).
 pub fn xyz_to_linear_srgb(xyz: [f32; 3]) -> Rgb {
     let [x, y, z] = xyz;
@@ -138,5 +172,29 @@ mod tests {
                 assert!((back.0[k] - rgb.0[k]).abs() < 1e-5, "{rgb:?} -> {back:?}");
             }
         }
+    }
+
+    #[test]
+    fn listed_spectra_convert_like_mitsubas_rgb_variants() {
+        let flat = [(360.0, 0.5), (830.0, 0.5)];
+        let r = spectrum_to_linear_srgb(&flat, false);
+        assert!((0..3).all(|c| (r[c] - 0.5).abs() < 2e-3), "{r:?}");
+        let e = spectrum_to_linear_srgb(&[(360.0, 1.0), (830.0, 1.0)], true);
+        let ee = crate::scene::props::EQUAL_ENERGY_WHITE;
+        assert!((0..3).all(|c| (e[c] - ee[c]).abs() < 2e-3), "{e:?}");
+        // A red-only reflectance is red; one outside the visible is black.
+        let red = spectrum_to_linear_srgb(&[(590.0, 0.0), (600.0, 1.0), (830.0, 1.0)], false);
+        assert!(red[0] > 0.5 && red[2].abs() < 0.05, "{red:?}");
+        // Mitsuba 3.9.1 (scalar_rgb) reads value="400:0.1, 500:0.4, 600:0.8,
+        // 700:0.3" as these colours (reflectance of a diffuse BSDF, radiance of
+        // a constant emitter), printed with mi.traverse.
+        let list = [(400.0, 0.1), (500.0, 0.4), (600.0, 0.8), (700.0, 0.3)];
+        let (r, e) = (spectrum_to_linear_srgb(&list, false), spectrum_to_linear_srgb(&list, true));
+        eprintln!("reflectance {r:?}, emission {e:?}");
+        for (got, want) in [(r, [0.779078, 0.582128, 0.216829]), (e, [0.90726, 0.55894, 0.187656])] {
+            assert!((0..3).all(|c| (got[c] - want[c]).abs() < 3e-3), "{got:?} vs Mitsuba {want:?}");
+        }
+        let uv = spectrum_to_linear_srgb(&[(300.0, 1.0), (355.0, 1.0)], false);
+        assert!((0..3).all(|c| uv[c] == 0.0));
     }
 }
