@@ -186,8 +186,8 @@ fn twosided_rejects_transmitting_bsdfs() {
 fn unknown_plugin_of_every_kind() {
     let cases: &[(&str, &[&str])] = &[
         ("    <shape type=\"sphre\"/>\n", &["rectangle", "cube", "disk", "sphere", "obj", "ply"]),
-        ("    <emitter type=\"spot\"/>\n", &["area", "point", "constant", "directional"]),
-        ("    <integrator type=\"volpath\"/>\n", &["direct", "path"]),
+        ("    <emitter type=\"envmap\"/>\n", &["area", "point", "spot", "constant", "directional"]),
+        ("    <integrator type=\"volpath\"/>\n", &["direct", "path", "ptracer"]),
         ("    <texture type=\"noise\"/>\n", &["bitmap", "checkerboard"]),
     ];
     for (body, choices) in cases {

@@ -72,3 +72,56 @@ fn cornell_box_matches_mitsuba_spectral() {
 fn caustic_box_matches_mitsuba_spectral() {
     check_against_mitsuba_spectral("scenes/caustic-cornell-box.xml", "tests/references/spectral/caustic-cornell-box.exr", 64);
 }
+
+/// A listed `<spectrum>` is used as such in spectral mode. A sphere whose
+/// reflectance is a 20 nm band at 550 nm, in a constant environment emitting
+/// the same band: a convex diffuse object in a uniform environment reflects
+/// ρ(λ)·L(λ) exactly, so the sphere's colour is the spectrum 0.8·L(λ) seen
+/// through the CIE observer, the background L(λ)'s. An uplift of the
+/// reflectance's RGB colour (a broad green) would give a fraction of that.
+#[test]
+fn listed_spectra_are_used_at_each_wavelength() {
+    let band = "530:0, 540:1, 560:1, 570:0";
+    let reflect = "530:0, 540:0.8, 560:0.8, 570:0";
+    let text = format!(
+        r#"<scene version="3.0.0">
+    <integrator type="path"/>
+    <sensor type="perspective">
+        <float name="fov" value="20"/>
+        <transform name="to_world"><lookat origin="0,0,6" target="0,0,0" up="0,1,0"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="64"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="48"/><integer name="height" value="48"/><rfilter type="box"/></film>
+    </sensor>
+    <emitter type="constant"><spectrum name="radiance" value="{band}"/></emitter>
+    <shape type="sphere"><float name="radius" value="0.8"/>
+        <bsdf type="diffuse"><spectrum name="reflectance" value="{reflect}"/></bsdf></shape>
+</scene>"#
+    );
+    let expect = |pairs: &[(f32, f32)]| snell::spectrum::cie::spectrum_to_linear_srgb(pairs, true);
+    let l = [(530.0, 0.0), (540.0, 1.0), (560.0, 1.0), (570.0, 0.0)];
+    // ρ(λ)·L(λ), both linear on their ramps: quadratic there, so tabulated finely.
+    let (ls, rs) = (snell::spectrum::ListedSpectrum::new(l.to_vec()).unwrap(), snell::spectrum::ListedSpectrum::new(vec![(530.0, 0.0), (540.0, 0.8), (560.0, 0.8), (570.0, 0.0)]).unwrap());
+    let rl: Vec<(f32, f32)> = (0..=400).map(|i| 530.0 + i as f32 * 0.1).map(|x| (x, ls.eval(x) * rs.eval(x))).collect();
+    let (want_bg, want_sphere) = (expect(&l), expect(&rl));
+    let passes = render_passes_as::<Sampled>(Path::new("band.xml"), Some(&text), params(&[]), 4, 64);
+    let img = average(&passes);
+    // Centre block (on the sphere, which covers the middle ~60 %) and corners (sky).
+    let mean_of = |pixels: &mut dyn Iterator<Item = (u32, u32)>| {
+        let (mut s, mut n) = ([0.0f64; 3], 0.0);
+        for (x, y) in pixels {
+            let p = img.pixels[(y * img.width + x) as usize];
+            for c in 0..3 {
+                s[c] += p[c] as f64;
+            }
+            n += 1.0;
+        }
+        s.map(|v| v / n)
+    };
+    let sphere = mean_of(&mut (18..30).flat_map(|y| (18..30).map(move |x| (x, y))));
+    let sky = mean_of(&mut (0..4).flat_map(|y| (0..4).map(move |x| (x, y))));
+    eprintln!("sphere {sphere:?} (expected {want_sphere:?}); sky {sky:?} (expected {want_bg:?})");
+    for c in 0..3 {
+        assert!((sphere[c] - want_sphere[c] as f64).abs() < 0.03 * want_sphere[1] as f64, "sphere channel {c}");
+        assert!((sky[c] - want_bg[c] as f64).abs() < 0.03 * want_bg[1] as f64, "sky channel {c}");
+    }
+}

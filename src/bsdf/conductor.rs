@@ -56,7 +56,7 @@ impl Conductor {
         if wi.z <= 0.0 {
             return None;
         }
-        let weight = self.fresnel::<S>(wi.z, wl) * S::from_reflectance(self.specular_reflectance.eval(si.uv), wl);
+        let weight = self.fresnel::<S>(wi.z, wl) * self.specular_reflectance.eval_spectrum::<S>(si.uv, wl);
         Some(BsdfSample { wo: reflect(wi), weight, pdf: 1.0, eta: 1.0, lobe: Lobe::DELTA_REFLECTION })
     }
 }

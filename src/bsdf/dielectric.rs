@@ -67,7 +67,7 @@ impl Dielectric {
         if u < f.r {
             Some(BsdfSample {
                 wo: reflect(wi),
-                weight: S::from_reflectance(self.specular_reflectance.eval(si.uv), wl),
+                weight: self.specular_reflectance.eval_spectrum::<S>(si.uv, wl),
                 pdf: f.r,
                 eta: 1.0,
                 lobe: Lobe::DELTA_REFLECTION,
@@ -79,7 +79,7 @@ impl Dielectric {
             };
             Some(BsdfSample {
                 wo: refract(wi, f.cos_t, f.eta_ti),
-                weight: S::from_reflectance(self.specular_transmittance.eval(si.uv), wl) * scale,
+                weight: self.specular_transmittance.eval_spectrum::<S>(si.uv, wl) * scale,
                 pdf: 1.0 - f.r,
                 eta: f.eta_it,
                 lobe: Lobe::DELTA_TRANSMISSION,

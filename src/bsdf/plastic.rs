@@ -40,7 +40,7 @@ use super::fresnel::{fresnel_dielectric, fresnel_diffuse_reflectance, reflect};
 use super::{BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
 use crate::math::sampling::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
-use crate::spectrum::{Rgb, Spectrum};
+use crate::spectrum::Spectrum;
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
 
@@ -83,9 +83,13 @@ impl Plastic {
     /// ρ' (the base albedo with the internal bounces summed), times (1 − F_i)(1 − F_o)/η².
     #[inline]
     fn diffuse_albedo<S: Spectrum>(&self, si: &SurfaceInteraction, f_i: f32, f_o: f32, wl: &S::Wavelengths) -> S {
-        let rho = self.diffuse_reflectance.eval(si.uv);
-        let rho = if self.nonlinear { rho.map(|r| r / (1.0 - r * self.fdr_int)) } else { rho * (1.0 / (1.0 - self.fdr_int)) };
-        S::from_reflectance(rho, wl) * (self.inv_eta2 * (1.0 - f_i) * (1.0 - f_o))
+        let fdr = self.fdr_int;
+        let rho: S = if self.nonlinear {
+            self.diffuse_reflectance.eval_spectrum_map(si.uv, wl, |r| r / (1.0 - r * fdr))
+        } else {
+            self.diffuse_reflectance.eval_spectrum_map(si.uv, wl, |r| r / (1.0 - fdr))
+        };
+        rho * (self.inv_eta2 * (1.0 - f_i) * (1.0 - f_o))
     }
 
     #[inline]
@@ -115,10 +119,10 @@ impl Plastic {
         let f_i = fresnel_dielectric(wi.z, self.eta).r;
         let p_s = self.prob_specular(f_i);
         if u1 < p_s {
-            let scale = self.specular_reflectance.as_ref().map_or(Rgb::WHITE, |t| t.eval(si.uv));
+            let scale: S = self.specular_reflectance.as_ref().map_or(S::splat(1.0), |t| t.eval_spectrum(si.uv, wl));
             return Some(BsdfSample {
                 wo: reflect(wi),
-                weight: S::from_reflectance(scale, wl) * (f_i / p_s),
+                weight: scale * (f_i / p_s),
                 pdf: p_s,
                 eta: 1.0,
                 lobe: Lobe::DELTA_REFLECTION,
@@ -144,6 +148,7 @@ impl Plastic {
 mod tests {
     use super::*;
     use crate::bsdf::testing::*;
+    use crate::spectrum::Rgb;
     use crate::bsdf::{Bsdf, TransportMode};
     use crate::math::Pcg32;
 

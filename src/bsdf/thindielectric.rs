@@ -53,7 +53,7 @@ impl ThinDielectric {
         if u < r {
             Some(BsdfSample {
                 wo: reflect(wi),
-                weight: S::from_reflectance(self.specular_reflectance.eval(si.uv), wl),
+                weight: self.specular_reflectance.eval_spectrum::<S>(si.uv, wl),
                 pdf: r,
                 eta: 1.0,
                 lobe: Lobe::DELTA_REFLECTION,
@@ -61,7 +61,7 @@ impl ThinDielectric {
         } else {
             Some(BsdfSample {
                 wo: -wi,
-                weight: S::from_reflectance(self.specular_transmittance.eval(si.uv), wl),
+                weight: self.specular_transmittance.eval_spectrum::<S>(si.uv, wl),
                 pdf: 1.0 - r,
                 eta: 1.0,
                 lobe: Lobe::DELTA_TRANSMISSION,

@@ -17,19 +17,20 @@
 //! </shape>
 //! ```
 
-use crate::spectrum::Rgb;
+use crate::spectrum::Emission;
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
 pub struct AreaLight {
     pub shape: u32,
-    pub radiance: Rgb,
+    pub radiance: Emission,
 }
 
 impl AreaLight {
-    /// Radiance leaving the surface with shading normal `sh_n` in direction `w`.
+    /// Radiance leaving the surface with shading normal `sh_n` in direction
+    /// `w`: `None` from the back, which does not emit.
     #[inline]
-    pub fn eval(&self, sh_n: Vec3, w: Vec3) -> Rgb {
-        if sh_n.dot(w) > 0.0 { self.radiance } else { Rgb::BLACK }
+    pub fn eval(&self, sh_n: Vec3, w: Vec3) -> Option<&Emission> {
+        (sh_n.dot(w) > 0.0).then_some(&self.radiance)
     }
 }

@@ -11,9 +11,9 @@
 //! <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
 //! ```
 
-use crate::spectrum::Rgb;
+use crate::spectrum::Emission;
 
 #[derive(Clone, Debug)]
 pub struct ConstantLight {
-    pub radiance: Rgb,
+    pub radiance: Emission,
 }

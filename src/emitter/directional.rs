@@ -16,12 +16,12 @@
 //! </emitter>
 //! ```
 
-use crate::spectrum::Rgb;
+use crate::spectrum::Emission;
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
 pub struct DirectionalLight {
     /// Unit direction the light travels in.
     pub direction: Vec3,
-    pub irradiance: Rgb,
+    pub irradiance: Emission,
 }

@@ -16,11 +16,11 @@
 //! </emitter>
 //! ```
 
-use crate::spectrum::Rgb;
+use crate::spectrum::Emission;
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
 pub struct PointLight {
     pub position: Vec3,
-    pub intensity: Rgb,
+    pub intensity: Emission,
 }

@@ -20,7 +20,7 @@
 //! </emitter>
 //! ```
 
-use crate::spectrum::Rgb;
+use crate::spectrum::Emission;
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
@@ -28,7 +28,7 @@ pub struct SpotLight {
     pub position: Vec3,
     /// Unit axis of the cone (world space).
     pub axis: Vec3,
-    pub intensity: Rgb,
+    pub intensity: Emission,
     /// Cutoff half-angle (radians) and its cosine.
     pub cutoff: f32,
     pub cos_cutoff: f32,
@@ -39,7 +39,7 @@ pub struct SpotLight {
 
 impl SpotLight {
     /// `cutoff_deg` in (0, 90], `beam_deg` in (0, cutoff_deg].
-    pub fn new(position: Vec3, axis: Vec3, intensity: Rgb, cutoff_deg: f32, beam_deg: f32) -> SpotLight {
+    pub fn new(position: Vec3, axis: Vec3, intensity: Emission, cutoff_deg: f32, beam_deg: f32) -> SpotLight {
         let (cutoff, beam) = (cutoff_deg.to_radians(), beam_deg.to_radians());
         let transition = cutoff - beam;
         SpotLight {
@@ -73,7 +73,7 @@ mod tests {
 
     #[test]
     fn falloff_is_one_in_the_beam_zero_outside_and_linear_between() {
-        let s = SpotLight::new(Vec3::ZERO, Vec3::Z, Rgb::WHITE, 20.0, 10.0);
+        let s = SpotLight::new(Vec3::ZERO, Vec3::Z, Emission::rgb(crate::spectrum::Rgb::WHITE), 20.0, 10.0);
         let dir = |deg: f32| Vec3::new(deg.to_radians().sin(), 0.0, deg.to_radians().cos());
         assert_eq!(s.falloff(dir(0.0)), 1.0);
         assert_eq!(s.falloff(dir(9.9)), 1.0);

@@ -46,15 +46,15 @@ impl Direct {
         let hit = if self.hide_emitters { scene.intersect_hiding_emitters(&ray) } else { scene.intersect(&ray) };
         let Some(si) = hit else {
             if !self.hide_emitters {
-                if let Some(env) = scene.environment_radiance() {
-                    result += S::from_illuminant(env, wl);
+                if let Some(env) = scene.environment_radiance::<S>(wl) {
+                    result += env;
                 }
             }
             return result;
         };
         if !self.hide_emitters {
-            if let Some(le) = scene.emitted(&si) {
-                result += S::from_illuminant(le, wl);
+            if let Some(le) = scene.emitted::<S>(&si, wl) {
+                result += le;
             }
         }
         let bsdf = scene.bsdf(&si);
@@ -89,17 +89,17 @@ impl Direct {
             let ray = Ray::new(si.spawn_origin(d), d);
             let delta = bs.lobe.intersects(Lobe::DELTA);
             let (le, em_pdf) = match scene.intersect(&ray) {
-                Some(hit) => match scene.emitted(&hit) {
+                Some(hit) => match scene.emitted::<S>(&hit, wl) {
                     Some(le) => (le, if delta { 0.0 } else { scene.pdf_emitter_hit(si.p, &hit) }),
                     None => continue,
                 },
-                None => match scene.environment_radiance() {
+                None => match scene.environment_radiance::<S>(wl) {
                     Some(le) => (le, if delta { 0.0 } else { scene.pdf_environment() }),
                     None => continue,
                 },
             };
             let w = if self.emitter_samples == 0 { 1.0 } else { mis_power(bs.pdf * nb / total, em_pdf * ne / total) };
-            result += bs.weight * S::from_illuminant(le, wl) * (w / nb);
+            result += bs.weight * le * (w / nb);
         }
         result
     }

@@ -49,17 +49,17 @@ impl PathTracer {
             let visible = !(self.hide_emitters && depth == 0);
             let Some(si) = hit else {
                 if visible {
-                    if let Some(env) = scene.environment_radiance() {
+                    if let Some(env) = scene.environment_radiance::<S>(wl) {
                         let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_environment()) };
-                        result += throughput * S::from_illuminant(env, wl) * w;
+                        result += throughput * env * w;
                     }
                 }
                 break;
             };
             if visible {
-                if let Some(le) = scene.emitted(&si) {
+                if let Some(le) = scene.emitted::<S>(&si, wl) {
                     let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_emitter_hit(prev_p, &si)) };
-                    result += throughput * S::from_illuminant(le, wl) * w;
+                    result += throughput * le * w;
                 }
             }
             if depth.saturating_add(1) >= self.max_depth {

@@ -22,7 +22,7 @@ use crate::math::Transform;
 use crate::sampler::SamplerSpec;
 use crate::sensor::perspective::horizontal_fov;
 use crate::sensor::{Camera, Orthographic, Perspective};
-use crate::spectrum::Rgb;
+use crate::spectrum::{Emission, Rgb};
 use crate::texture::bitmap::{self, Bitmap};
 use crate::texture::{Checkerboard, Texture, uv_transform};
 use glam::{Mat4, Vec3};
@@ -428,6 +428,9 @@ impl Loader {
 
     /// A colour parameter: `rgb`/`spectrum`/`float`, or a nested (or referenced) texture.
     fn texture_input(&self, props: &Props, name: &str, default: Rgb) -> Result<Texture> {
+        if let Some(listed) = props.listed_opt(name) {
+            return Ok(Texture::Spectral { rgb: listed.to_rgb(false), spectrum: Arc::new(listed) });
+        }
         if let Some(c) = props.color_opt(name)? {
             return Ok(Texture::Constant(c));
         }
@@ -486,7 +489,7 @@ impl Loader {
                 .with_choices(&["area"]));
         }
         let props = Props::new(node);
-        let radiance = props.illuminant_opt("radiance")?.ok_or_else(|| SceneError::at(&node.loc, "area emitter needs \"radiance\""))?;
+        let radiance = props.emission_opt("radiance")?.ok_or_else(|| SceneError::at(&node.loc, "area emitter needs \"radiance\""))?;
         props.finish()?;
         self.emitters.push(Emitter::Area(AreaLight { shape, radiance }));
         Ok(self.emitters.len() as u32 - 1)
@@ -502,7 +505,7 @@ impl Loader {
                 let to_world = props.transform("to_world")?;
                 let position = props.vec3_opt("position")?.unwrap_or_else(|| to_world.point(Vec3::ZERO));
                 let intensity =
-                    props.illuminant_opt("intensity")?.ok_or_else(|| SceneError::at(&node.loc, "point emitter needs \"intensity\""))?;
+                    props.emission_opt("intensity")?.ok_or_else(|| SceneError::at(&node.loc, "point emitter needs \"intensity\""))?;
                 Emitter::Point(PointLight { position, intensity })
             }
             "spot" => {
@@ -512,12 +515,12 @@ impl Loader {
                     return Err(SceneError::at(&node.loc, "spot emitter's to_world collapses its axis"));
                 }
                 let intensity =
-                    props.illuminant_opt("intensity")?.ok_or_else(|| SceneError::at(&node.loc, "spot emitter needs \"intensity\""))?;
+                    props.emission_opt("intensity")?.ok_or_else(|| SceneError::at(&node.loc, "spot emitter needs \"intensity\""))?;
                 let cutoff = props.float_checked("cutoff_angle", 20.0, |a| a > 0.0 && a <= 90.0, "an angle in (0, 90] degrees")?;
                 let beam = props.float_checked("beam_width", cutoff * 0.75, |b| b > 0.0 && b <= cutoff, "an angle in (0, cutoff_angle] degrees")?;
                 Emitter::Spot(SpotLight::new(to_world.point(Vec3::ZERO), axis, intensity, cutoff, beam))
             }
-            "constant" => Emitter::Constant(ConstantLight { radiance: props.illuminant_opt("radiance")?.unwrap_or(Rgb::WHITE) }),
+            "constant" => Emitter::Constant(ConstantLight { radiance: props.emission_opt("radiance")?.unwrap_or(Emission::rgb(Rgb::WHITE)) }),
             "directional" => {
                 let to_world = props.transform("to_world")?;
                 let direction = props.vec3_opt("direction")?.unwrap_or_else(|| to_world.vector(Vec3::Z)).normalize_or_zero();
@@ -525,7 +528,7 @@ impl Loader {
                     return Err(SceneError::at(&node.loc, "directional emitter has a zero direction"));
                 }
                 let irradiance = props
-                    .illuminant_opt("irradiance")?
+                    .emission_opt("irradiance")?
                     .ok_or_else(|| SceneError::at(&node.loc, "directional emitter needs \"irradiance\""))?;
                 Emitter::Directional(DirectionalLight { direction, irradiance })
             }

@@ -26,7 +26,7 @@ use crate::math::{Frame, PI};
 use crate::math::{INV_FOUR_PI, SHADOW_EPSILON};
 use crate::sampler::SamplerSpec;
 use crate::sensor::Camera;
-use crate::spectrum::{Rgb, Spectrum};
+use crate::spectrum::Spectrum;
 use glam::{Vec2, Vec3};
 
 /// The start of a light path.
@@ -88,21 +88,22 @@ impl Scene {
         &self.bsdfs[self.shapes[si.shape as usize].bsdf as usize]
     }
 
-    /// Emitted radiance from the surface at `si` back along the ray.
+    /// Emitted radiance from the surface at `si` back along the ray (zero
+    /// from an emitter's back side).
     #[inline]
-    pub fn emitted(&self, si: &SurfaceInteraction) -> Option<Rgb> {
+    pub fn emitted<S: Spectrum>(&self, si: &SurfaceInteraction, wl: &S::Wavelengths) -> Option<S> {
         let e = self.shapes[si.shape as usize].emitter?;
         match &self.emitters[e as usize] {
-            Emitter::Area(a) => Some(a.eval(si.frame.n, si.frame.to_world(si.wi))),
+            Emitter::Area(a) => Some(a.eval(si.frame.n, si.frame.to_world(si.wi)).map_or(S::zero(), |le| le.eval(wl))),
             _ => None,
         }
     }
 
     /// Radiance arriving from the environment along direction `d` (a ray that escaped).
     #[inline]
-    pub fn environment_radiance(&self) -> Option<Rgb> {
+    pub fn environment_radiance<S: Spectrum>(&self, wl: &S::Wavelengths) -> Option<S> {
         match &self.emitters[self.environment? as usize] {
-            Emitter::Constant(c) => Some(c.radiance),
+            Emitter::Constant(c) => Some(c.radiance.eval(wl)),
             _ => None,
         }
     }
@@ -142,7 +143,7 @@ impl Scene {
             Emitter::Area(a) => {
                 let ds = self.shapes[a.shape as usize].sample_direction(si.p, u)?;
                 // Only the front side emits.
-                let radiance = a.eval(ds.sh_n, -ds.d);
+                let radiance = a.eval(ds.sh_n, -ds.d)?;
                 if ds.pdf <= 0.0 || !ds.pdf.is_finite() || radiance.is_zero() {
                     return None;
                 }
@@ -152,7 +153,7 @@ impl Scene {
                     dist: ds.dist,
                     p: Some(ds.p),
                     n: ds.n,
-                    weight: S::from_illuminant(radiance, wl) / pdf,
+                    weight: radiance.eval::<S>(wl) / pdf,
                     pdf,
                     delta: false,
                 }
@@ -169,7 +170,7 @@ impl Scene {
                     dist,
                     p: Some(pl.position),
                     n: Vec3::ZERO,
-                    weight: S::from_illuminant(pl.intensity, wl) / (dist2 * pmf),
+                    weight: pl.intensity.eval::<S>(wl) / (dist2 * pmf),
                     pdf: 0.0,
                     delta: true,
                 }
@@ -190,7 +191,7 @@ impl Scene {
                     dist,
                     p: Some(sl.position),
                     n: Vec3::ZERO,
-                    weight: S::from_illuminant(sl.intensity, wl) * (falloff / (dist2 * pmf)),
+                    weight: sl.intensity.eval::<S>(wl) * (falloff / (dist2 * pmf)),
                     pdf: 0.0,
                     delta: true,
                 }
@@ -200,14 +201,14 @@ impl Scene {
                 dist: f32::INFINITY,
                 p: None,
                 n: Vec3::ZERO,
-                weight: S::from_illuminant(dl.irradiance, wl) / pmf,
+                weight: dl.irradiance.eval::<S>(wl) / pmf,
                 pdf: 0.0,
                 delta: true,
             },
             Emitter::Constant(c) => {
                 let d = square_to_uniform_sphere(u);
                 let pdf = INV_FOUR_PI * pmf;
-                EmitterSample { d, dist: f32::INFINITY, p: None, n: Vec3::ZERO, weight: S::from_illuminant(c.radiance, wl) / pdf, pdf, delta: false }
+                EmitterSample { d, dist: f32::INFINITY, p: None, n: Vec3::ZERO, weight: c.radiance.eval::<S>(wl) / pdf, pdf, delta: false }
             }
         };
         // Shadow ray, stopping just short of the emitter's surface.
@@ -251,7 +252,7 @@ impl Scene {
                 // Le·cos/pdf = Le·π.
                 let local = square_to_cosine_hemisphere(u_dir);
                 let d = Frame::from_normal(ps.sh_n).to_world(local);
-                let position_weight = S::from_illuminant(a.radiance, wl) / (ps.pdf_area * pmf);
+                let position_weight = a.radiance.eval::<S>(wl) / (ps.pdf_area * pmf);
                 Some(EmissionSample {
                     ray: Ray::new(offset_origin(ps.p, ps.n, d), d),
                     p: ps.p,
@@ -266,7 +267,7 @@ impl Scene {
                     ray: Ray::new(pl.position, d),
                     p: pl.position,
                     n: Vec3::ZERO,
-                    weight: S::from_illuminant(pl.intensity, wl) * (4.0 * PI / pmf),
+                    weight: pl.intensity.eval::<S>(wl) * (4.0 * PI / pmf),
                     position_weight: None,
                 })
             }
@@ -280,7 +281,7 @@ impl Scene {
                     ray: Ray::new(sl.position, d),
                     p: sl.position,
                     n: Vec3::ZERO,
-                    weight: S::from_illuminant(sl.intensity, wl) * (falloff / (uniform_cone_pdf(sl.cos_cutoff) * pmf)),
+                    weight: sl.intensity.eval::<S>(wl) * (falloff / (uniform_cone_pdf(sl.cos_cutoff) * pmf)),
                     position_weight: None,
                 })
             }

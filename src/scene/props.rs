@@ -6,7 +6,7 @@ use super::error::{Result, SceneError};
 use super::xml::{Child, Kind, Node, Value};
 use crate::bsdf::dispersion::IorSpectrum;
 use crate::math::Transform;
-use crate::spectrum::Rgb;
+use crate::spectrum::{Emission, ListedSpectrum, Rgb};
 use crate::spectrum::cie::spectrum_to_linear_srgb;
 use glam::Vec3;
 use std::cell::Cell;
@@ -227,16 +227,29 @@ impl<'a> Props<'a> {
         }
     }
 
-    /// An emission colour. A constant `<spectrum>` here means equal-energy
-    /// light, whose linear-sRGB value is not grey: Mitsuba's RGB variants
-    /// scale it by the sRGB coordinates of the equal-energy white point.
-    pub fn illuminant_opt(&self, name: &str) -> Result<Option<Rgb>> {
-        match self.find(name) {
-            Some((_, Value::Spectrum(v))) => return Ok(Some(EQUAL_ENERGY_WHITE * *v)),
-            Some((_, Value::SpectrumList(v))) => return Ok(Some(spectrum_to_linear_srgb(v, true))),
-            _ => {}
+    /// A `<spectrum>` of `wavelength:value` pairs, if that is what `name` is
+    /// (other types are left for the other getters).
+    pub fn listed_opt(&self, name: &str) -> Option<ListedSpectrum> {
+        let i = self.node.props.iter().position(|p| p.name == name)?;
+        match &self.node.props[i].value {
+            Value::SpectrumList(v) => {
+                self.used[i].set(true);
+                ListedSpectrum::new(v.clone())
+            }
+            _ => None,
         }
-        self.color_opt(name)
+    }
+
+    /// Emission (radiance, intensity, irradiance): a colour, or a spectrum
+    /// kept as such for spectral mode (a constant `<spectrum>` is flat).
+    pub fn emission_opt(&self, name: &str) -> Result<Option<Emission>> {
+        if let Some(listed) = self.listed_opt(name) {
+            return Ok(Some(Emission::listed(listed)));
+        }
+        if let Some((_, Value::Spectrum(v))) = self.find(name) {
+            return Ok(Some(Emission { rgb: EQUAL_ENERGY_WHITE * *v, spectrum: Some(std::sync::Arc::new(ListedSpectrum::constant(*v))) }));
+        }
+        Ok(self.color_opt(name)?.map(Emission::rgb))
     }
 
     pub fn color(&self, name: &str, default: Rgb) -> Result<Rgb> {

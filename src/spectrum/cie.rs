@@ -77,17 +77,8 @@ pub fn d65_normalization() -> f32 {
 /// is, so the constant 1 gives the equal-energy white with Y = 1. This is the
 /// conversion Mitsuba's RGB variants make when they read such a spectrum.
 pub fn spectrum_to_linear_srgb(samples: &[(f32, f32)], illuminant: bool) -> Rgb {
-    let value = |lambda: f32| -> f32 {
-        let i = samples.partition_point(|&(l, _)| l <= lambda);
-        if i == 0 || i == samples.len() && samples[samples.len() - 1].0 < lambda {
-            return 0.0;
-        }
-        if i == samples.len() {
-            return samples[i - 1].1;
-        }
-        let ((l0, v0), (l1, v1)) = (samples[i - 1], samples[i]);
-        v0 + (v1 - v0) * (lambda - l0) / (l1 - l0)
-    };
+    let Some(listed) = super::ListedSpectrum::new(samples.to_vec()) else { return Rgb::BLACK };
+    let value = |lambda: f32| listed.eval(lambda);
     let mut xyz = [0.0f64; 3];
     let mut norm = 0.0f64;
     for i in 0..SAMPLES {

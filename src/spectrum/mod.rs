@@ -9,10 +9,12 @@
 
 pub mod cie;
 mod cie_data;
+pub mod listed;
 mod rgb;
 pub mod sampled;
 pub mod uplift;
 
+pub use listed::{Emission, ListedSpectrum};
 pub use rgb::Rgb;
 pub use sampled::Sampled;
 

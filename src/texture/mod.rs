@@ -10,13 +10,16 @@ pub mod checkerboard;
 pub use bitmap::Bitmap;
 pub use checkerboard::Checkerboard;
 
-use crate::spectrum::Rgb;
+use crate::spectrum::{ListedSpectrum, Rgb, Spectrum};
 use glam::{Affine2, Mat2, Mat4, Vec2};
 use std::sync::Arc;
 
 #[derive(Clone, Debug)]
 pub enum Texture {
     Constant(Rgb),
+    /// A `<spectrum>` of `wavelength:value` pairs: its colour in RGB mode,
+    /// the spectrum itself in spectral mode.
+    Spectral { rgb: Rgb, spectrum: Arc<ListedSpectrum> },
     Bitmap(Arc<Bitmap>),
     Checkerboard(Checkerboard),
 }
@@ -25,9 +28,28 @@ impl Texture {
     #[inline]
     pub fn eval(&self, uv: Vec2) -> Rgb {
         match self {
-            Texture::Constant(c) => *c,
+            Texture::Constant(c) | Texture::Spectral { rgb: c, .. } => *c,
             Texture::Bitmap(b) => b.eval(uv),
             Texture::Checkerboard(c) => c.eval(uv),
+        }
+    }
+
+    /// The texture as a reflectance at the path's wavelengths.
+    #[inline]
+    pub fn eval_spectrum<S: Spectrum>(&self, uv: Vec2, wl: &S::Wavelengths) -> S {
+        match self {
+            Texture::Spectral { rgb, spectrum } => S::from_function(*rgb, |l| spectrum.eval(l), wl),
+            _ => S::from_reflectance(self.eval(uv), wl),
+        }
+    }
+
+    /// As [`Texture::eval_spectrum`], with `f` applied to the reflectance
+    /// (per channel, or per wavelength).
+    #[inline]
+    pub fn eval_spectrum_map<S: Spectrum>(&self, uv: Vec2, wl: &S::Wavelengths, f: impl Fn(f32) -> f32) -> S {
+        match self {
+            Texture::Spectral { rgb, spectrum } => S::from_function(rgb.map(&f), |l| f(spectrum.eval(l)), wl),
+            _ => S::from_reflectance(self.eval(uv).map(f), wl),
         }
     }
 
@@ -35,7 +57,7 @@ impl Texture {
     /// `plastic` steers its lobe choice by it).
     pub fn mean(&self) -> f32 {
         match self {
-            Texture::Constant(c) => c.mean(),
+            Texture::Constant(c) | Texture::Spectral { rgb: c, .. } => c.mean(),
             Texture::Bitmap(b) => b.mean(),
             Texture::Checkerboard(c) => 0.5 * (c.color0.mean() + c.color1.mean()),
         }
@@ -45,6 +67,7 @@ impl Texture {
     pub fn max_value(&self) -> f32 {
         match self {
             Texture::Constant(c) => c.0.into_iter().fold(0.0, f32::max),
+            Texture::Spectral { spectrum, .. } => spectrum.samples().iter().fold(0.0, |m, &(_, v)| m.max(v)),
             Texture::Bitmap(b) => b.max_value(),
             Texture::Checkerboard(c) => c.color0.0.into_iter().chain(c.color1.0).fold(0.0, f32::max),
         }
