@@ -88,7 +88,7 @@ mod tests {
             eta: Rgb::new(0.2, 0.45, 1.4),
             k: Rgb::new(3.6, 2.5, 1.9),
             spectra: None,
-            specular_reflectance: Texture::Constant(Rgb::WHITE),
+            specular_reflectance: Texture::constant(Rgb::WHITE),
         })
     }
 

@@ -100,8 +100,8 @@ mod tests {
         Bsdf::Dielectric(Dielectric {
             eta,
             dispersion: None,
-            specular_reflectance: Texture::Constant(Rgb::WHITE),
-            specular_transmittance: Texture::Constant(Rgb::WHITE),
+            specular_reflectance: Texture::constant(Rgb::WHITE),
+            specular_transmittance: Texture::constant(Rgb::WHITE),
         })
     }
 

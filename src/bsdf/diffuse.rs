@@ -74,7 +74,7 @@ mod tests {
     use crate::spectrum::Rgb;
 
     fn lambert(r: f32) -> Bsdf {
-        Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(Rgb::new(r, r * 0.5, r * 0.25)) })
+        Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(Rgb::new(r, r * 0.5, r * 0.25)) })
     }
 
     #[test]

@@ -153,7 +153,7 @@ mod tests {
     use crate::math::Pcg32;
 
     fn plastic(rho: Rgb, eta: f32, nonlinear: bool) -> Bsdf {
-        Bsdf::Plastic(Plastic::new(Texture::Constant(rho), None, eta, nonlinear))
+        Bsdf::Plastic(Plastic::new(Texture::constant(rho), None, eta, nonlinear))
     }
 
     #[test]

@@ -79,8 +79,8 @@ mod tests {
     fn slab_reflectance_sums_the_internal_bounces() {
         let pane = ThinDielectric {
             eta: 1.5,
-            specular_reflectance: Texture::Constant(Rgb::WHITE),
-            specular_transmittance: Texture::Constant(Rgb::WHITE),
+            specular_reflectance: Texture::constant(Rgb::WHITE),
+            specular_transmittance: Texture::constant(Rgb::WHITE),
         };
         for cos in [1.0f32, 0.8, 0.3, 0.05] {
             let r = fresnel_dielectric(cos, 1.5).r as f64;

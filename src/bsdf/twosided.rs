@@ -63,7 +63,7 @@ mod tests {
 
     #[test]
     fn back_side_scatters_like_the_front() {
-        let d = Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(Rgb::new(0.7, 0.7, 0.7)) });
+        let d = Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(Rgb::new(0.7, 0.7, 0.7)) });
         let b = Bsdf::TwoSided(TwoSided { front: Box::new(d.clone()), back: Box::new(d) });
         let back = flip(incident(0.6, 0.2));
         chi2_test(&b, back, 23);

@@ -249,7 +249,7 @@ impl Loader {
                 // Mitsuba's default material: diffuse 0.5, but black on an
                 // emitter (a light source reflects nothing unless told to).
                 let albedo = if emitter_nodes.is_empty() { 0.5 } else { 0.0 };
-                self.bsdfs.push(Bsdf::Diffuse(Diffuse { reflectance: Texture::Constant(Rgb::new(albedo, albedo, albedo)) }));
+                self.bsdfs.push(Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(Rgb::new(albedo, albedo, albedo)) }));
                 self.bsdfs.len() as u32 - 1
             }
         };
@@ -432,7 +432,7 @@ impl Loader {
             return Ok(Texture::Spectral { rgb: listed.to_rgb(false), spectrum: Arc::new(listed) });
         }
         if let Some(c) = props.color_opt(name)? {
-            return Ok(Texture::Constant(c));
+            return Ok(Texture::constant(c));
         }
         match props.child_named(name) {
             Some(child) => {
@@ -442,7 +442,7 @@ impl Loader {
                 }
                 self.texture(&node)
             }
-            None => Ok(Texture::Constant(default)),
+            None => Ok(Texture::constant(default)),
         }
     }
 

@@ -247,7 +247,7 @@ impl<'a> Props<'a> {
             return Ok(Some(Emission::listed(listed)));
         }
         if let Some((_, Value::Spectrum(v))) = self.find(name) {
-            return Ok(Some(Emission { rgb: EQUAL_ENERGY_WHITE * *v, spectrum: Some(std::sync::Arc::new(ListedSpectrum::constant(*v))) }));
+            return Ok(Some(Emission::flat(EQUAL_ENERGY_WHITE * *v, *v)));
         }
         Ok(self.color_opt(name)?.map(Emission::rgb))
     }

@@ -7,7 +7,7 @@
 //! that colour.
 
 use super::cie::spectrum_to_linear_srgb;
-use super::{Rgb, Spectrum};
+use super::{Rgb, Spectrum, UpliftCache};
 use std::sync::Arc;
 
 /// A piecewise-linear spectrum, zero outside its wavelength range (Mitsuba's
@@ -60,15 +60,22 @@ impl ListedSpectrum {
 pub struct Emission {
     pub rgb: Rgb,
     pub spectrum: Option<Arc<ListedSpectrum>>,
+    cache: UpliftCache,
 }
 
 impl Emission {
     pub fn rgb(rgb: Rgb) -> Emission {
-        Emission { rgb, spectrum: None }
+        Emission { rgb, spectrum: None, cache: UpliftCache::default() }
     }
 
     pub fn listed(spectrum: ListedSpectrum) -> Emission {
-        Emission { rgb: spectrum.to_rgb(true), spectrum: Some(Arc::new(spectrum)) }
+        Emission { rgb: spectrum.to_rgb(true), spectrum: Some(Arc::new(spectrum)), cache: UpliftCache::default() }
+    }
+
+    /// Flat emission `value` at every wavelength (a constant `<spectrum>`),
+    /// whose RGB colour is `rgb`.
+    pub fn flat(rgb: Rgb, value: f32) -> Emission {
+        Emission { rgb, spectrum: Some(Arc::new(ListedSpectrum::constant(value))), cache: UpliftCache::default() }
     }
 
     pub fn is_zero(&self) -> bool {
@@ -80,7 +87,7 @@ impl Emission {
     pub fn eval<S: Spectrum>(&self, wl: &S::Wavelengths) -> S {
         match &self.spectrum {
             Some(s) => S::from_function(self.rgb, |l| s.eval(l), wl),
-            None => S::from_illuminant(self.rgb, wl),
+            None => S::from_illuminant_cached(self.rgb, &self.cache, wl),
         }
     }
 }

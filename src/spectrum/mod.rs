@@ -10,6 +10,7 @@
 pub mod cie;
 mod cie_data;
 pub mod listed;
+pub mod mueller;
 mod rgb;
 pub mod sampled;
 pub mod uplift;
@@ -17,6 +18,7 @@ pub mod uplift;
 pub use listed::{Emission, ListedSpectrum};
 pub use rgb::Rgb;
 pub use sampled::Sampled;
+pub use uplift::UpliftCache;
 
 use std::fmt::Debug;
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign};
@@ -54,6 +56,18 @@ pub trait Spectrum:
     fn from_reflectance(rgb: Rgb, wavelengths: &Self::Wavelengths) -> Self;
     /// An emission input (radiance, intensity, irradiance) as this spectrum.
     fn from_illuminant(rgb: Rgb, wavelengths: &Self::Wavelengths) -> Self;
+    /// [`Spectrum::from_reflectance`] of a colour that never changes, with
+    /// its uplift kept in `cache`.
+    #[inline]
+    fn from_reflectance_cached(rgb: Rgb, _cache: &UpliftCache, wavelengths: &Self::Wavelengths) -> Self {
+        Self::from_reflectance(rgb, wavelengths)
+    }
+    /// [`Spectrum::from_illuminant`] of a colour that never changes, with
+    /// its uplift kept in `cache`.
+    #[inline]
+    fn from_illuminant_cached(rgb: Rgb, _cache: &UpliftCache, wavelengths: &Self::Wavelengths) -> Self {
+        Self::from_illuminant(rgb, wavelengths)
+    }
     /// An unbounded per-channel quantity that is not a colour (e.g. a
     /// conductor's η and k) as this spectrum.
     fn from_unbounded(rgb: Rgb, wavelengths: &Self::Wavelengths) -> Self;

@@ -17,7 +17,7 @@
 
 use super::cie::{cie_xyz, d65_unit, xyz_to_linear_srgb, y_normalization};
 use super::uplift::RgbUplift;
-use super::{Rgb, Spectrum};
+use super::{Rgb, Spectrum, UpliftCache};
 use glam::Vec4;
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign};
 
@@ -156,6 +156,16 @@ impl Spectrum for Sampled {
     }
     fn from_illuminant(rgb: Rgb, wl: &Wavelengths) -> Self {
         let (scale, s) = RgbUplift::get().unbounded(rgb);
+        Sampled::from_fn(|i| scale * s.eval(wl.lambda[i]) * d65_unit(wl.lambda[i]))
+    }
+    #[inline]
+    fn from_reflectance_cached(rgb: Rgb, cache: &UpliftCache, wl: &Wavelengths) -> Self {
+        let s = cache.reflectance(rgb);
+        Sampled::from_fn(|i| s.eval(wl.lambda[i]))
+    }
+    #[inline]
+    fn from_illuminant_cached(rgb: Rgb, cache: &UpliftCache, wl: &Wavelengths) -> Self {
+        let (scale, s) = cache.unbounded(rgb);
         Sampled::from_fn(|i| scale * s.eval(wl.lambda[i]) * d65_unit(wl.lambda[i]))
     }
     fn from_unbounded(rgb: Rgb, wl: &Wavelengths) -> Self {

@@ -39,6 +39,27 @@ pub struct SigmoidPolynomial {
     pub c: [f32; 3],
 }
 
+/// The uplift of one constant colour, computed on first use and kept: a
+/// constant reflectance or emission is looked up in the coefficient table
+/// once per render instead of at every path vertex. Empty in RGB mode.
+#[derive(Clone, Debug, Default)]
+pub struct UpliftCache(std::sync::OnceLock<(f32, SigmoidPolynomial)>);
+
+impl UpliftCache {
+    /// (1, shape) of reflectance `rgb`.
+    #[inline]
+    pub fn reflectance(&self, rgb: Rgb) -> &SigmoidPolynomial {
+        &self.0.get_or_init(|| (1.0, RgbUplift::get().reflectance(rgb))).1
+    }
+
+    /// (scale, shape) of unbounded `rgb`.
+    #[inline]
+    pub fn unbounded(&self, rgb: Rgb) -> (f32, &SigmoidPolynomial) {
+        let (scale, shape) = self.0.get_or_init(|| RgbUplift::get().unbounded(rgb));
+        (*scale, shape)
+    }
+}
+
 #[inline]
 fn sigmoid(x: f32) -> f32 {
     if x.is_infinite() {

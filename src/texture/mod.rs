@@ -10,13 +10,14 @@ pub mod checkerboard;
 pub use bitmap::Bitmap;
 pub use checkerboard::Checkerboard;
 
-use crate::spectrum::{ListedSpectrum, Rgb, Spectrum};
+use crate::spectrum::{ListedSpectrum, Rgb, Spectrum, UpliftCache};
 use glam::{Affine2, Mat2, Mat4, Vec2};
 use std::sync::Arc;
 
 #[derive(Clone, Debug)]
 pub enum Texture {
-    Constant(Rgb),
+    /// A constant colour (and, in spectral mode, its uplift once computed).
+    Constant(Rgb, UpliftCache),
     /// A `<spectrum>` of `wavelength:value` pairs: its colour in RGB mode,
     /// the spectrum itself in spectral mode.
     Spectral { rgb: Rgb, spectrum: Arc<ListedSpectrum> },
@@ -28,7 +29,7 @@ impl Texture {
     #[inline]
     pub fn eval(&self, uv: Vec2) -> Rgb {
         match self {
-            Texture::Constant(c) | Texture::Spectral { rgb: c, .. } => *c,
+            Texture::Constant(c, _) | Texture::Spectral { rgb: c, .. } => *c,
             Texture::Bitmap(b) => b.eval(uv),
             Texture::Checkerboard(c) => c.eval(uv),
         }
@@ -38,9 +39,15 @@ impl Texture {
     #[inline]
     pub fn eval_spectrum<S: Spectrum>(&self, uv: Vec2, wl: &S::Wavelengths) -> S {
         match self {
+            Texture::Constant(rgb, cache) => S::from_reflectance_cached(*rgb, cache, wl),
             Texture::Spectral { rgb, spectrum } => S::from_function(*rgb, |l| spectrum.eval(l), wl),
             _ => S::from_reflectance(self.eval(uv), wl),
         }
+    }
+
+    /// A constant colour.
+    pub fn constant(rgb: Rgb) -> Texture {
+        Texture::Constant(rgb, UpliftCache::default())
     }
 
     /// As [`Texture::eval_spectrum`], with `f` applied to the reflectance
@@ -57,7 +64,7 @@ impl Texture {
     /// `plastic` steers its lobe choice by it).
     pub fn mean(&self) -> f32 {
         match self {
-            Texture::Constant(c) | Texture::Spectral { rgb: c, .. } => c.mean(),
+            Texture::Constant(c, _) | Texture::Spectral { rgb: c, .. } => c.mean(),
             Texture::Bitmap(b) => b.mean(),
             Texture::Checkerboard(c) => 0.5 * (c.color0.mean() + c.color1.mean()),
         }
@@ -66,7 +73,7 @@ impl Texture {
     /// The largest value the texture takes (for energy checks).
     pub fn max_value(&self) -> f32 {
         match self {
-            Texture::Constant(c) => c.0.into_iter().fold(0.0, f32::max),
+            Texture::Constant(c, _) => c.0.into_iter().fold(0.0, f32::max),
             Texture::Spectral { spectrum, .. } => spectrum.samples().iter().fold(0.0, |m, &(_, v)| m.max(v)),
             Texture::Bitmap(b) => b.max_value(),
             Texture::Checkerboard(c) => c.color0.0.into_iter().chain(c.color1.0).fold(0.0, f32::max),
