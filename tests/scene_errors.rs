@@ -151,6 +151,15 @@ fn ior_of_the_wrong_type_or_not_positive() {
 }
 
 #[test]
+fn malformed_spectrum_lists() {
+    for value in ["400:0.5, 380:0.2", "400:0.5", "400:0.5, 500", "400:0.5, 500:x"] {
+        let e = load_err(&scene(&format!("    <bsdf type=\"diffuse\">\n        <spectrum name=\"reflectance\" value=\"{value}\"/>\n    </bsdf>\n")));
+        assert_error(&e, &scene_path(), 10, 38, "value=", "is neither a constant nor a list of wavelength:value pairs");
+        assert_help(&e, &["400:0.1, 500:0.4", "increasing"]);
+    }
+}
+
+#[test]
 fn bad_dispersive_ior() {
     let e = load_err(&scene("    <bsdf type=\"dielectric\">\n        <string name=\"int_ior\" value=\"sellmeier:flint\"/>\n    </bsdf>\n"));
     assert_error(&e, &scene_path(), 10, 9, "<string name=\"int_ior\"", "unknown dispersive medium \"flint\"");
