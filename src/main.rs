@@ -3,7 +3,7 @@
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use snell::film::output::{Format, write_image};
-use snell::spectrum::{Rgb, Sampled};
+use snell::spectrum::{Polarized, Rgb, Sampled};
 use snell::{LoadOptions, RenderOptions};
 use std::collections::HashMap;
 use std::io::IsTerminal;
@@ -50,8 +50,10 @@ struct RenderArgs {
     #[arg(short, long)]
     quiet: bool,
     /// What a light path carries: RGB triples (as Mitsuba's *_rgb variants),
-    /// or four sampled wavelengths (as its *_spectral variants; needed for
-    /// dispersion).
+    /// four sampled wavelengths (as its *_spectral variants; needed for
+    /// dispersion), or either with a Mueller matrix per channel (as its
+    /// *_polarized variants; so far for scenes of diffuse surfaces and
+    /// polarizers, and the image is S0).
     #[arg(long, value_enum, default_value_t = Mode::Rgb)]
     mode: Mode,
 }
@@ -60,6 +62,8 @@ struct RenderArgs {
 enum Mode {
     Rgb,
     Spectral,
+    RgbPolarized,
+    SpectralPolarized,
 }
 
 fn main() -> ExitCode {
@@ -134,7 +138,16 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
     let load_start = std::time::Instant::now();
     let options = LoadOptions { params, spp: args.spp, seed: args.seed };
     let scene = snell::load_file(&args.scene, &options)?;
-    if args.mode == Mode::Spectral {
+    if matches!(args.mode, Mode::RgbPolarized | Mode::SpectralPolarized) {
+        if let Some(b) = scene.bsdfs.iter().find(|b| !b.has_mueller_model()) {
+            anyhow::bail!(
+                "{}: the polarized modes support diffuse and polarizer BSDFs so far; this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
+                args.scene.display(),
+                b.plugin()
+            );
+        }
+    }
+    if matches!(args.mode, Mode::Spectral | Mode::SpectralPolarized) {
         // Fit the RGB uplift table now, so rendering time excludes it.
         snell::spectrum::uplift::RgbUplift::get();
     }
@@ -145,6 +158,8 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
     let (image, stats) = match args.mode {
         Mode::Rgb => snell::render::<Rgb>(&scene, &render_options)?,
         Mode::Spectral => snell::render::<Sampled>(&scene, &render_options)?,
+        Mode::RgbPolarized => snell::render::<Polarized<Rgb>>(&scene, &render_options)?,
+        Mode::SpectralPolarized => snell::render::<Polarized<Sampled>>(&scene, &render_options)?,
     };
     for o in &outputs {
         write_image(&image, o)?;
@@ -153,7 +168,7 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
         let mut json = serde_json::to_value(&stats)?;
         json["load_seconds"] = load_seconds.into();
         json["scene"] = args.scene.display().to_string().into();
-        json["mode"] = format!("{:?}", args.mode).to_lowercase().into();
+        json["mode"] = args.mode.to_possible_value().map_or_else(String::new, |v| v.get_name().to_string()).into();
         std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n").with_context(|| format!("cannot write {}", path.display()))?;
     }
     if !args.quiet {

@@ -24,6 +24,7 @@ pub mod ior;
 pub mod metal_spectra;
 pub mod metals;
 pub mod plastic;
+pub mod polarizer;
 pub mod thindielectric;
 pub mod twosided;
 
@@ -31,6 +32,7 @@ pub use conductor::Conductor;
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use plastic::Plastic;
+pub use polarizer::Polarizer;
 pub use thindielectric::ThinDielectric;
 pub use twosided::TwoSided;
 
@@ -84,6 +86,7 @@ pub enum Bsdf {
     Dielectric(Dielectric),
     ThinDielectric(ThinDielectric),
     Plastic(Plastic),
+    Polarizer(Polarizer),
     TwoSided(TwoSided),
 }
 
@@ -94,8 +97,33 @@ impl Bsdf {
             Bsdf::Diffuse(_) => Lobe::DIFFUSE_REFLECTION,
             Bsdf::Conductor(_) => Lobe::DELTA_REFLECTION,
             Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => Lobe::DELTA,
+            Bsdf::Polarizer(_) => Lobe::DELTA_TRANSMISSION,
             Bsdf::Plastic(_) => Lobe::DELTA_REFLECTION | Lobe::DIFFUSE_REFLECTION,
             Bsdf::TwoSided(t) => t.lobes(),
+        }
+    }
+
+    /// Whether the polarized modes model this BSDF's effect on polarisation
+    /// (diffuse surfaces depolarise, polarizers polarise); the others have no
+    /// Mueller form yet, and the polarized modes refuse scenes with them.
+    pub fn has_mueller_model(&self) -> bool {
+        match self {
+            Bsdf::Diffuse(_) | Bsdf::Polarizer(_) => true,
+            Bsdf::TwoSided(t) => t.has_mueller_model(),
+            _ => false,
+        }
+    }
+
+    /// The plugin name, for messages.
+    pub fn plugin(&self) -> &'static str {
+        match self {
+            Bsdf::Diffuse(_) => "diffuse",
+            Bsdf::Conductor(_) => "conductor",
+            Bsdf::Dielectric(_) => "dielectric",
+            Bsdf::ThinDielectric(_) => "thindielectric",
+            Bsdf::Plastic(_) => "plastic",
+            Bsdf::Polarizer(_) => "polarizer",
+            Bsdf::TwoSided(_) => "twosided",
         }
     }
 
@@ -110,7 +138,7 @@ impl Bsdf {
         match self {
             Bsdf::Diffuse(d) => d.eval(si, wi, wo, wl),
             Bsdf::Plastic(p) => p.eval(si, wi, wo, wl),
-            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => S::zero(),
+            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::Polarizer(_) => S::zero(),
             Bsdf::TwoSided(t) => t.eval(si, wi, wo, wl),
         }
     }
@@ -120,7 +148,7 @@ impl Bsdf {
         match self {
             Bsdf::Diffuse(d) => d.pdf(wi, wo),
             Bsdf::Plastic(p) => p.pdf(wi, wo),
-            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => 0.0,
+            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::Polarizer(_) => 0.0,
             Bsdf::TwoSided(t) => t.pdf(si, wi, wo),
         }
     }
@@ -143,6 +171,7 @@ impl Bsdf {
             Bsdf::Dielectric(d) => d.sample(si, wi, u1, mode, wl),
             Bsdf::ThinDielectric(d) => d.sample(si, wi, u1, wl),
             Bsdf::Plastic(p) => p.sample(si, wi, u1, u2, wl),
+            Bsdf::Polarizer(p) => p.sample(si, wi, wl),
             Bsdf::TwoSided(t) => t.sample(si, wi, u1, u2, mode, wl),
         }
     }

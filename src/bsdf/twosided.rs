@@ -27,6 +27,10 @@ fn flip(v: Vec3) -> Vec3 {
 }
 
 impl TwoSided {
+    pub fn has_mueller_model(&self) -> bool {
+        self.front.has_mueller_model() && self.back.has_mueller_model()
+    }
+
     pub fn lobes(&self) -> Lobe {
         self.front.lobes() | self.back.lobes()
     }

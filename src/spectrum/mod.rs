@@ -11,12 +11,14 @@ pub mod cie;
 mod cie_data;
 pub mod listed;
 pub mod mueller;
+pub mod polarized;
 mod rgb;
 pub mod sampled;
 pub mod uplift;
 
 pub use listed::{Emission, ListedSpectrum};
 pub use rgb::Rgb;
+pub use polarized::Polarized;
 pub use sampled::Sampled;
 pub use uplift::UpliftCache;
 
@@ -80,4 +82,19 @@ pub trait Spectrum:
     fn to_rgb(&self, wavelengths: &Self::Wavelengths) -> Rgb;
     fn max_component(&self) -> f32;
     fn is_zero(&self) -> bool;
+    /// Forgets polarisation (a diffuse surface's Mueller matrix keeps S0
+    /// only); nothing to do for unpolarised types.
+    #[inline]
+    fn depolarize(self) -> Self {
+        self
+    }
+    /// An optical element known by its Mueller matrix `m` (in the canonical
+    /// Stokes frames of the directions involved), scaled by `scale`.
+    /// Unpolarised types see only what it does to unpolarised light, m₀₀.
+    #[inline]
+    fn mueller(m: glam::Mat4, scale: Self) -> Self {
+        scale * m.x_axis.x
+    }
+    /// Whether this type carries polarisation.
+    const POLARIZED: bool = false;
 }
