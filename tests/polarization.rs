@@ -94,5 +94,77 @@ fn polarized_modes_refuse_bsdfs_without_a_mueller_model() {
         .expect("run snell");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("polarized modes support diffuse and polarizer") && (stderr.contains("dielectric") || stderr.contains("conductor")), "{stderr}");
+    assert!(stderr.contains("polarized modes support diffuse, dielectric and polarizer") && stderr.contains("\"conductor\" BSDF"), "{stderr}");
+}
+
+/// The seed's polarizing-filter photo, as a closed form: a glass surface
+/// (η 1.5, black below) reflects a white sky towards a camera at Brewster's
+/// angle atan(1.5) = 56.3°. The reflection is ½R⊥ of the sky, all of it
+/// s-polarised (horizontal here): a polarizer in front of the camera passes
+/// all of it when its axis is horizontal and none when vertical.
+#[test]
+fn brewster_reflection_vanishes_behind_a_crossed_polarizer() {
+    let eta = 1.5f32;
+    let brewster = eta.atan();
+    let cam = glam::Vec3::new(0.0, brewster.cos(), brewster.sin()) * 5.0;
+    let view = (-cam).normalize();
+    let sheet_at = cam + view;
+    // The sheet's tangent frame (Snell's, from its normal): the θ that puts
+    // its axis along world x, i.e. along s.
+    let frame = snell::math::Frame::from_normal(view);
+    let theta_s = frame.t.dot(glam::Vec3::X).atan2(frame.s.dot(glam::Vec3::X)).to_degrees();
+    let scene = |polarizer: Option<f32>| {
+        let sheet = polarizer.map_or(String::new(), |theta| {
+            format!(
+                r#"<shape type="rectangle">
+        <transform name="to_world"><scale value="0.5"/><lookat origin="{}, {}, {}" target="{}, {}, {}" up="0, 1, 0"/></transform>
+        <bsdf type="polarizer"><float name="theta" value="{theta}"/></bsdf>
+    </shape>"#,
+                sheet_at.x, sheet_at.y, sheet_at.z, sheet_at.x + view.x, sheet_at.y + view.y, sheet_at.z + view.z
+            )
+        });
+        format!(
+            r#"<scene version="3.0.0">
+    <integrator type="path"/>
+    <sensor type="perspective">
+        <float name="fov" value="1"/>
+        <transform name="to_world"><lookat origin="{}, {}, {}" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/><rfilter type="box"/></film>
+    </sensor>
+    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="50"/><rotate x="1" angle="-90"/></transform>
+        <bsdf type="dielectric"><float name="int_ior" value="{eta}"/><float name="ext_ior" value="1"/></bsdf>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="50"/><rotate x="1" angle="-90"/><translate y="-1"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+    </shape>
+    {sheet}
+</scene>"#,
+            cam.x, cam.y, cam.z
+        )
+    };
+    let render = |text: &str, polarized: bool| {
+        let passes = if polarized {
+            render_passes_as::<Polarized<Rgb>>(Path::new("brewster.xml"), Some(text), params(&[]), 8, 1024)
+        } else {
+            render_passes_as::<Rgb>(Path::new("brewster.xml"), Some(text), params(&[]), 8, 1024)
+        };
+        mean(&average(&passes))[1]
+    };
+    let f = snell::bsdf::fresnel::fresnel_dielectric(brewster.cos(), eta);
+    let half_rs = 0.5 * f.r_perpendicular as f64;
+    let bare = render(&scene(None), true);
+    let along_s = render(&scene(Some(theta_s)), true);
+    let crossed = render(&scene(Some(theta_s + 90.0)), true);
+    eprintln!("½R⊥ = {half_rs:.5}: bare {bare:.5}, polarizer along s {along_s:.5}, crossed {crossed:.6}");
+    // Reflection is sampled with probability F ≈ 0.15: 8 × 1024 spp per pixel keep the noise near 0.3 %.
+    assert!((bare - half_rs).abs() < 0.02 * half_rs, "bare {bare} vs {half_rs}");
+    assert!((along_s - half_rs).abs() < 0.02 * half_rs, "along s {along_s} vs {half_rs}");
+    assert!(crossed < 1e-3 * half_rs, "crossed polarizer still passes {crossed}");
+    // Unpolarised mode: the bare reflection is the same; a sheet halves it at any angle.
+    let bare_rgb = render(&scene(None), false);
+    let crossed_rgb = render(&scene(Some(theta_s + 90.0)), false);
+    assert!((bare_rgb - half_rs).abs() < 0.05 * half_rs && (crossed_rgb - 0.5 * half_rs).abs() < 0.05 * half_rs, "{bare_rgb} {crossed_rgb}");
 }

@@ -42,6 +42,7 @@ use super::fresnel::{fresnel_dielectric, reflect, refract};
 use super::{BsdfSample, Lobe, TransportMode};
 use crate::geometry::SurfaceInteraction;
 use crate::spectrum::Spectrum;
+use crate::spectrum::mueller::{interface_to_canonical, specular_reflection, specular_transmission};
 use crate::texture::Texture;
 use glam::Vec3;
 
@@ -65,25 +66,34 @@ impl Dielectric {
         };
         let f = fresnel_dielectric(wi.z, eta);
         if u < f.r {
-            Some(BsdfSample {
-                wo: reflect(wi),
-                weight: self.specular_reflectance.eval_spectrum::<S>(si.uv, wl),
-                pdf: f.r,
-                eta: 1.0,
-                lobe: Lobe::DELTA_REFLECTION,
-            })
+            let wo = reflect(wi);
+            let scale = self.specular_reflectance.eval_spectrum::<S>(si.uv, wl);
+            let weight = if S::POLARIZED {
+                // Light arrives along −wo and leaves along wi (towards the camera).
+                let m = specular_reflection(wo.z, eta);
+                let m = interface_to_canonical(m, si.frame.n, -si.to_world(wo), si.to_world(wi));
+                S::mueller(m, scale) / f.r
+            } else {
+                scale
+            };
+            Some(BsdfSample { wo, weight, pdf: f.r, eta: 1.0, lobe: Lobe::DELTA_REFLECTION })
         } else {
             let scale = match mode {
                 TransportMode::Radiance => f.eta_ti * f.eta_ti,
                 TransportMode::Importance => 1.0,
             };
-            Some(BsdfSample {
-                wo: refract(wi, f.cos_t, f.eta_ti),
-                weight: self.specular_transmittance.eval_spectrum::<S>(si.uv, wl) * scale,
-                pdf: 1.0 - f.r,
-                eta: f.eta_it,
-                lobe: Lobe::DELTA_TRANSMISSION,
-            })
+            let wo = refract(wi, f.cos_t, f.eta_ti);
+            let tint = self.specular_transmittance.eval_spectrum::<S>(si.uv, wl);
+            let weight = if S::POLARIZED {
+                // Light crosses from wo's side into wi's: the Fresnel terms of
+                // that crossing, T = 1 − F for unpolarised light.
+                let m = specular_transmission(wo.z, eta);
+                let m = interface_to_canonical(m, si.frame.n, -si.to_world(wo), si.to_world(wi));
+                S::mueller(m, tint) * (scale / (1.0 - f.r))
+            } else {
+                tint * scale
+            };
+            Some(BsdfSample { wo, weight, pdf: 1.0 - f.r, eta: f.eta_it, lobe: Lobe::DELTA_TRANSMISSION })
         }
     }
 }

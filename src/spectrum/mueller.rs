@@ -170,6 +170,17 @@ pub fn rotate_mueller_basis(
     r_out * m * r_in
 }
 
+/// An interface's Mueller matrix `m_sp`, given in the s/p frames (x = s for
+/// both beams), re-expressed in the canonical Stokes frames of the incident
+/// light's direction of travel `in_forward` and the outgoing light's
+/// `out_forward`, at a surface of normal `n`.
+pub fn interface_to_canonical(m_sp: Mat4, n: Vec3, in_forward: Vec3, out_forward: Vec3) -> Mat4 {
+    // s is perpendicular to the plane of incidence, which holds both beams.
+    let s = in_forward.cross(n);
+    let s = if s.length_squared() > 1e-12 { s.normalize() } else { stokes_basis(in_forward) };
+    rotate_mueller_basis(m_sp, in_forward, s, stokes_basis(in_forward), out_forward, s, stokes_basis(out_forward))
+}
+
 /// Degree of (total) polarisation of a Stokes vector.
 pub fn degree_of_polarization(s: Vec4) -> f32 {
     if s.x > 0.0 { (s.y * s.y + s.z * s.z + s.w * s.w).sqrt() / s.x } else { 0.0 }
