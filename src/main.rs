@@ -53,7 +53,7 @@ struct RenderArgs {
     /// four sampled wavelengths (as its *_spectral variants; needed for
     /// dispersion), or either with a Mueller matrix per channel (as its
     /// *_polarized variants; so far for scenes of diffuse surfaces, smooth
-    /// dielectrics and polarizers, and the image is S0).
+    /// dielectrics and conductors, and polarizers, and the image is S0).
     #[arg(long, value_enum, default_value_t = Mode::Rgb)]
     mode: Mode,
 }
@@ -141,7 +141,7 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
     if matches!(args.mode, Mode::RgbPolarized | Mode::SpectralPolarized) {
         if let Some(b) = scene.bsdfs.iter().find(|b| !b.has_mueller_model()) {
             anyhow::bail!(
-                "{}: the polarized modes support diffuse, dielectric and polarizer BSDFs so far; this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
+                "{}: the polarized modes support diffuse, dielectric, conductor and polarizer BSDFs so far; this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
                 args.scene.display(),
                 b.plugin()
             );

@@ -87,14 +87,14 @@ fn polarized_mode_without_polarizers_matches_the_unpolarized_render() {
 #[test]
 fn polarized_modes_refuse_bsdfs_without_a_mueller_model() {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_snell"))
-        .args(["render", "scenes/caustic-cornell-box.xml", "--mode", "rgb-polarized", "-D", "res=8", "--spp", "1", "-q", "-o"])
+        .args(["render", "tests/scenes/plastic.xml", "--mode", "rgb-polarized", "-D", "res=8", "--spp", "1", "-q", "-o"])
         .arg(std::env::temp_dir().join("snell-polarized-refused.exr"))
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
         .expect("run snell");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("polarized modes support diffuse, dielectric and polarizer") && stderr.contains("\"conductor\" BSDF"), "{stderr}");
+    assert!(stderr.contains("polarized modes support diffuse, dielectric, conductor and polarizer") && stderr.contains("\"plastic\" BSDF"), "{stderr}");
 }
 
 /// The seed's polarizing-filter photo, as a closed form: a glass surface
@@ -167,4 +167,30 @@ fn brewster_reflection_vanishes_behind_a_crossed_polarizer() {
     let bare_rgb = render(&scene(None), false);
     let crossed_rgb = render(&scene(Some(theta_s + 90.0)), false);
     assert!((bare_rgb - half_rs).abs() < 0.05 * half_rs && (crossed_rgb - 0.5 * half_rs).abs() < 0.05 * half_rs, "{bare_rgb} {crossed_rgb}");
+}
+
+/// Conductors in Mueller form: a convex gold sphere (or a perfect mirror)
+/// alone in a white sky reflects unpolarised light once, so S0 is the
+/// unpolarised Fresnel term pixel for pixel, though the reflected light is
+/// polarised. (Two spheres would not do: light reflected by one arrives
+/// polarised at the other, and S0 of the second reflection depends on it.)
+#[test]
+fn conductor_intensity_matches_the_unpolarized_render() {
+    for material in ["Au", "Cu", "none"] {
+        let text = furnace(
+            &format!(r#"<shape type="sphere"><float name="radius" value="0.8"/><bsdf type="conductor"><string name="material" value="{material}"/></bsdf></shape>"#),
+            24,
+            16,
+        );
+        let path = Path::new("metal.xml");
+        for spectral in [false, true] {
+            let (a, b) = if spectral {
+                (average(&render_passes_as::<Polarized<Sampled>>(path, Some(&text), params(&[]), 1, 8)), average(&render_passes_as::<Sampled>(path, Some(&text), params(&[]), 1, 8)))
+            } else {
+                (average(&render_passes_as::<Polarized<Rgb>>(path, Some(&text), params(&[]), 1, 8)), average(&render_passes_as::<Rgb>(path, Some(&text), params(&[]), 1, 8)))
+            };
+            let worst = a.pixels.iter().zip(&b.pixels).map(|(x, y)| (0..3).map(|c| (x[c] - y[c]).abs() / (y[c].abs() + 1e-3)).fold(0.0f32, f32::max)).fold(0.0f32, f32::max);
+            assert!(worst < 1e-4, "{material}, spectral {spectral}: largest relative difference {worst}");
+        }
+    }
 }

@@ -28,6 +28,7 @@ use super::fresnel::{fresnel_conductor, reflect};
 use super::{BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
 use super::metal_spectra::MetalSpectra;
+use crate::spectrum::mueller::{conductor_reflection, interface_to_canonical, perfect_mirror};
 use crate::spectrum::{Rgb, Spectrum};
 use crate::texture::Texture;
 use glam::Vec3;
@@ -42,12 +43,17 @@ pub struct Conductor {
 }
 
 impl Conductor {
-    /// The Fresnel reflectance per channel for incidence cosine `cos_i`.
-    pub fn fresnel<S: Spectrum>(&self, cos_i: f32, wl: &S::Wavelengths) -> S {
-        let (eta, k) = match self.spectra {
+    /// The complex index η + ik at the path's channels.
+    fn index<S: Spectrum>(&self, wl: &S::Wavelengths) -> (S, S) {
+        match self.spectra {
             Some(m) => (S::from_function(self.eta, |l| tabulated(m.eta, l), wl), S::from_function(self.k, |l| tabulated(m.k, l), wl)),
             None => (S::from_unbounded(self.eta, wl), S::from_unbounded(self.k, wl)),
-        };
+        }
+    }
+
+    /// The Fresnel reflectance per channel for incidence cosine `cos_i`.
+    pub fn fresnel<S: Spectrum>(&self, cos_i: f32, wl: &S::Wavelengths) -> S {
+        let (eta, k) = self.index::<S>(wl);
         eta.zip_map(k, |e, k| fresnel_conductor(cos_i, e, k))
     }
 
@@ -56,8 +62,25 @@ impl Conductor {
         if wi.z <= 0.0 {
             return None;
         }
-        let weight = self.fresnel::<S>(wi.z, wl) * self.specular_reflectance.eval_spectrum::<S>(si.uv, wl);
-        Some(BsdfSample { wo: reflect(wi), weight, pdf: 1.0, eta: 1.0, lobe: Lobe::DELTA_REFLECTION })
+        let wo = reflect(wi);
+        let scale = self.specular_reflectance.eval_spectrum::<S>(si.uv, wl);
+        let weight = if S::POLARIZED {
+            // The Fresnel matrix of the complex index, per channel, in the
+            // canonical frames of the incident (along −wo) and outgoing (along
+            // wi) light.
+            let (eta, k) = self.index::<S>(wl);
+            let (eta, k) = (eta.channels(), k.channels());
+            let (n, incident, outgoing) = (si.frame.n, -si.to_world(wo), si.to_world(wi));
+            S::mueller_channels(|r, c| {
+                eta.zip_map(k, |e, kk| {
+                    let m = if e == 0.0 && kk == 0.0 { perfect_mirror() } else { conductor_reflection(wo.z, e, kk) };
+                    interface_to_canonical(m, n, incident, outgoing).col(c)[r]
+                })
+            }) * scale
+        } else {
+            self.fresnel::<S>(wi.z, wl) * scale
+        };
+        Some(BsdfSample { wo, weight, pdf: 1.0, eta: 1.0, lobe: Lobe::DELTA_REFLECTION })
     }
 }
 

@@ -105,12 +105,13 @@ impl Bsdf {
 
     /// Whether the polarized modes model this BSDF's effect on polarisation
     /// (diffuse surfaces depolarise, polarizers polarise, smooth dielectrics
-    /// reflect and refract by the Fresnel equations in Mueller form); the others have no
+    /// and conductors reflect and refract by the Fresnel equations in Mueller
+    /// form); the others have no
     /// Mueller form yet, and the polarized modes refuse scenes with them.
     pub fn has_mueller_model(&self) -> bool {
         match self {
             Bsdf::Diffuse(_) | Bsdf::Polarizer(_) => true,
-            Bsdf::Dielectric(_) => true,
+            Bsdf::Dielectric(_) | Bsdf::Conductor(_) => true,
             Bsdf::TwoSided(t) => t.has_mueller_model(),
             _ => false,
         }

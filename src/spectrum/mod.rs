@@ -41,6 +41,16 @@ pub trait Spectrum:
     /// Per-path context the spectrum needs to interpret inputs: the sampled
     /// wavelengths in a spectral mode, nothing in RGB mode.
     type Wavelengths: Copy + Send + Sync + Debug;
+    /// The per-channel (unpolarised) values this type carries: itself for
+    /// unpolarised types, one Mueller-matrix entry's type for polarized ones.
+    type Channels: Spectrum<Wavelengths = Self::Wavelengths>;
+
+    /// The per-channel values: itself, or a Mueller matrix's intensity entry m₀₀.
+    fn channels(&self) -> Self::Channels;
+    /// A Mueller matrix whose entries differ per channel (e.g. a conductor's
+    /// Fresnel matrix at each wavelength), entry (row, column) from `entry`;
+    /// unpolarised types take m₀₀, its effect on unpolarised light.
+    fn mueller_channels(entry: impl Fn(usize, usize) -> Self::Channels) -> Self;
 
     fn zero() -> Self;
     fn splat(v: f32) -> Self;

@@ -117,6 +117,13 @@ pub fn conductor_reflection(cos_i: f32, eta: f32, k: f32) -> Mat4 {
     interface(r_s, r_p)
 }
 
+/// A perfect mirror (Mitsuba's conductor `none`, the limit η → ∞): every
+/// polarisation reflected in full, r_s = −1 and r_p = 1 (the mirror flip of
+/// S2 and S3 in the s/p frames).
+pub fn perfect_mirror() -> Mat4 {
+    interface(Complex32::new(-1.0, 0.0), Complex32::new(1.0, 0.0))
+}
+
 /// Transmission through a dielectric interface (s/p frames): the power
 /// transmittances T = (η_t cos θ_t / η_i cos θ_i)|t|², with t_s = 1 + r_s and
 /// t_p = (1 + r_p)·η_i/η_t; no phase difference. Zero under total internal

@@ -128,6 +128,20 @@ impl<U: Spectrum> Div<f32> for Polarized<U> {
 
 impl<U: Spectrum> Spectrum for Polarized<U> {
     type Wavelengths = U::Wavelengths;
+    type Channels = U;
+
+    fn channels(&self) -> U {
+        self.0[0][0]
+    }
+    fn mueller_channels(entry: impl Fn(usize, usize) -> U) -> Self {
+        let mut m = [[U::zero(); 4]; 4];
+        for (r, row) in m.iter_mut().enumerate() {
+            for (c, v) in row.iter_mut().enumerate() {
+                *v = entry(r, c);
+            }
+        }
+        Polarized(m)
+    }
 
     fn zero() -> Self {
         Polarized([[U::zero(); 4]; 4])

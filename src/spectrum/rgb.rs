@@ -89,6 +89,16 @@ impl Div<f32> for Rgb {
 
 impl Spectrum for Rgb {
     type Wavelengths = ();
+    type Channels = Self;
+
+    #[inline]
+    fn channels(&self) -> Self {
+        *self
+    }
+    #[inline]
+    fn mueller_channels(entry: impl Fn(usize, usize) -> Self) -> Self {
+        entry(0, 0)
+    }
 
     #[inline]
     fn zero() -> Self {

@@ -125,6 +125,16 @@ impl Div<f32> for Sampled {
 
 impl Spectrum for Sampled {
     type Wavelengths = Wavelengths;
+    type Channels = Self;
+
+    #[inline]
+    fn channels(&self) -> Self {
+        *self
+    }
+    #[inline]
+    fn mueller_channels(entry: impl Fn(usize, usize) -> Self) -> Self {
+        entry(0, 0)
+    }
 
     #[inline]
     fn zero() -> Self {
