@@ -5,7 +5,8 @@ By default two scenes: the Cornell box (diffuse) and the caustic Cornell box
 (glass and metal spheres: long specular paths); --scene (repeatable) picks others.
 For each scene, Snell and then Mitsuba run back to back, so both see the same
 machine load. --modes rgb,spectral adds Snell's spectral mode against Mitsuba's
-llvm_ad_spectral (the spectral overhead is the spectral/rgb ratio of each).
+llvm_ad_spectral (the spectral overhead is the spectral/rgb ratio of each);
+spectral-polarized measures the polarized mode against llvm_ad_spectral_polarized.
 
 Snell half: runs, N times,
   target/release/snell render SCENE -o /tmp/bench.exr --spp 256 -D res=512 \
@@ -83,13 +84,17 @@ def bench_snell(args, params):
 
 # --------------------------------------------------------------------------- Mitsuba
 
+# Snell's --mode and the Mitsuba variant it is measured against.
+MITSUBA_VARIANT = {"rgb": "llvm_ad_rgb", "spectral": "llvm_ad_spectral", "spectral-polarized": "llvm_ad_spectral_polarized"}
+
+
 def mitsuba_worker(args, params):
     """Runs inside a Python that has mitsuba; prints one JSON line at the end."""
     os.environ.setdefault("DRJIT_LIBLLVM_PATH", LLVM_LIB)
     import drjit as dr
     import mitsuba as mi
 
-    mi.set_variant("llvm_ad_spectral" if args.mode == "spectral" else "llvm_ad_rgb")
+    mi.set_variant(MITSUBA_VARIANT[args.mode])
     dr.set_thread_count(args.threads)
     scene = mi.load_file(args.scene, **params)
     w, h = scene.sensors()[0].film().size()
@@ -127,7 +132,7 @@ def bench_mitsuba(args):
         return None
     env = dict(os.environ)
     env.setdefault("DRJIT_LIBLLVM_PATH", LLVM_LIB)
-    variant = "llvm_ad_spectral" if args.mode == "spectral" else "llvm_ad_rgb"
+    variant = MITSUBA_VARIANT[args.mode]
     print(f"mitsuba: {variant}, {args.threads} threads, via {py}")
     argv = ["--mitsuba-worker", "--scene", args.scene, "--spp", str(args.spp),
             "--res", str(args.res), "--max-depth", str(args.max_depth),
@@ -184,8 +189,8 @@ def main():
     ap.add_argument("--no-mitsuba", action="store_true")
     ap.add_argument("--json", help="also write the results to this file")
     ap.add_argument("--modes", default="rgb",
-                    help="comma-separated: rgb, spectral (Snell --mode; Mitsuba llvm_ad_rgb / "
-                         "llvm_ad_spectral); e.g. --modes rgb,spectral")
+                    help="comma-separated: rgb, spectral, spectral-polarized (Snell --mode; Mitsuba "
+                         "llvm_ad_rgb / llvm_ad_spectral / llvm_ad_spectral_polarized); e.g. --modes rgb,spectral")
     ap.add_argument("--mode", default="rgb", help=argparse.SUPPRESS)
     ap.add_argument("--mitsuba-worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -201,9 +206,9 @@ def main():
         return
 
     modes = [m.strip() for m in args.modes.split(",") if m.strip()]
-    bad = [m for m in modes if m not in ("rgb", "spectral")]
+    bad = [m for m in modes if m not in MITSUBA_VARIANT]
     if bad:
-        sys.exit("error: unknown mode(s) " + ", ".join(bad) + " (valid: rgb, spectral)")
+        sys.exit("error: unknown mode(s) " + ", ".join(bad) + " (valid: " + ", ".join(MITSUBA_VARIANT) + ")")
     results = []
     for sc in scenes:
         for mode in modes:
