@@ -141,7 +141,7 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
     if matches!(args.mode, Mode::RgbPolarized | Mode::SpectralPolarized) {
         if let Some(b) = scene.bsdfs.iter().find(|b| !b.has_mueller_model()) {
             anyhow::bail!(
-                "{}: the polarized modes support diffuse, dielectric, conductor and polarizer BSDFs so far; this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
+                "{}: the polarized modes support diffuse, dielectric, conductor, polarizer and retarder BSDFs so far; this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
                 args.scene.display(),
                 b.plugin()
             );

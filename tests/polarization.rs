@@ -94,7 +94,7 @@ fn polarized_modes_refuse_bsdfs_without_a_mueller_model() {
         .expect("run snell");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("polarized modes support diffuse, dielectric, conductor and polarizer") && stderr.contains("\"plastic\" BSDF"), "{stderr}");
+    assert!(stderr.contains("polarized modes support diffuse, dielectric, conductor, polarizer and retarder") && stderr.contains("\"plastic\" BSDF"), "{stderr}");
 }
 
 /// The seed's polarizing-filter photo, as a closed form: a glass surface
@@ -192,5 +192,65 @@ fn conductor_intensity_matches_the_unpolarized_render() {
             let worst = a.pixels.iter().zip(&b.pixels).map(|(x, y)| (0..3).map(|c| (x[c] - y[c]).abs() / (y[c].abs() + 1e-3)).fold(0.0f32, f32::max)).fold(0.0f32, f32::max);
             assert!(worst < 1e-4, "{material}, spectral {spectral}: largest relative difference {worst}");
         }
+    }
+}
+
+/// Wave plates between polarizers: sky → polarizer at 0° → retarder →
+/// analyzer, seen along the normal. Closed forms for unpolarised light of
+/// intensity 1: a quarter-wave plate at 45° makes circular light, of which
+/// any analyzer passes half (¼); a half-wave plate at θ mirrors the
+/// polarisation about its axis (0° → 2θ), so an analyzer at 2θ passes ½ and
+/// one crossed to it nothing. The unpolarised modes see clear plates (½).
+#[test]
+fn wave_plates_between_polarizers() {
+    let scene = |plate_theta: f32, delta: f32, analyzer: f32| {
+        format!(
+            r#"<scene version="3.0.0">
+    <integrator type="path"/>
+    <sensor type="perspective">
+        <float name="fov" value="2"/>
+        <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="4"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/><rfilter type="box"/></film>
+    </sensor>
+    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="10"/><translate z="-1"/></transform>
+        <bsdf type="polarizer"/>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="10"/></transform>
+        <bsdf type="retarder"><float name="theta" value="{plate_theta}"/><float name="delta" value="{delta}"/></bsdf>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="10"/><translate z="1"/></transform>
+        <bsdf type="polarizer"><float name="theta" value="{analyzer}"/></bsdf>
+    </shape>
+</scene>"#
+        )
+    };
+    let render = |text: String, polarized: bool| {
+        let path = Path::new("plates.xml");
+        let img = if polarized {
+            average(&render_passes_as::<Polarized<Rgb>>(path, Some(&text), params(&[]), 1, 4))
+        } else {
+            average(&render_passes_as::<Rgb>(path, Some(&text), params(&[]), 1, 4))
+        };
+        mean(&img)[1]
+    };
+    for (plate, delta, analyzer, expected) in [
+        (45.0f32, 90.0f32, 90.0f32, 0.25f64),
+        (45.0, 90.0, 0.0, 0.25),
+        (45.0, 90.0, 30.0, 0.25),
+        (45.0, 180.0, 90.0, 0.5),
+        (45.0, 180.0, 0.0, 0.0),
+        (22.5, 180.0, 45.0, 0.5),
+        (22.5, 180.0, 135.0, 0.0),
+        (0.0, 90.0, 0.0, 0.5),
+    ] {
+        let got = render(scene(plate, delta, analyzer), true);
+        assert!((got - expected).abs() < 1e-4, "plate {plate}°, δ {delta}°, analyzer {analyzer}°: {got} vs {expected}");
+        let unpolarized = render(scene(plate, delta, analyzer), false);
+        assert!((unpolarized - 0.25).abs() < 1e-5, "{unpolarized}");
     }
 }

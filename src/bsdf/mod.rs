@@ -25,6 +25,7 @@ pub mod metal_spectra;
 pub mod metals;
 pub mod plastic;
 pub mod polarizer;
+pub mod retarder;
 pub mod thindielectric;
 pub mod twosided;
 
@@ -33,6 +34,7 @@ pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use plastic::Plastic;
 pub use polarizer::Polarizer;
+pub use retarder::Retarder;
 pub use thindielectric::ThinDielectric;
 pub use twosided::TwoSided;
 
@@ -87,6 +89,7 @@ pub enum Bsdf {
     ThinDielectric(ThinDielectric),
     Plastic(Plastic),
     Polarizer(Polarizer),
+    Retarder(Retarder),
     TwoSided(TwoSided),
 }
 
@@ -97,7 +100,7 @@ impl Bsdf {
             Bsdf::Diffuse(_) => Lobe::DIFFUSE_REFLECTION,
             Bsdf::Conductor(_) => Lobe::DELTA_REFLECTION,
             Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => Lobe::DELTA,
-            Bsdf::Polarizer(_) => Lobe::DELTA_TRANSMISSION,
+            Bsdf::Polarizer(_) | Bsdf::Retarder(_) => Lobe::DELTA_TRANSMISSION,
             Bsdf::Plastic(_) => Lobe::DELTA_REFLECTION | Lobe::DIFFUSE_REFLECTION,
             Bsdf::TwoSided(t) => t.lobes(),
         }
@@ -110,7 +113,7 @@ impl Bsdf {
     /// Mueller form yet, and the polarized modes refuse scenes with them.
     pub fn has_mueller_model(&self) -> bool {
         match self {
-            Bsdf::Diffuse(_) | Bsdf::Polarizer(_) => true,
+            Bsdf::Diffuse(_) | Bsdf::Polarizer(_) | Bsdf::Retarder(_) => true,
             Bsdf::Dielectric(_) | Bsdf::Conductor(_) => true,
             Bsdf::TwoSided(t) => t.has_mueller_model(),
             _ => false,
@@ -126,6 +129,7 @@ impl Bsdf {
             Bsdf::ThinDielectric(_) => "thindielectric",
             Bsdf::Plastic(_) => "plastic",
             Bsdf::Polarizer(_) => "polarizer",
+            Bsdf::Retarder(_) => "retarder",
             Bsdf::TwoSided(_) => "twosided",
         }
     }
@@ -141,7 +145,7 @@ impl Bsdf {
         match self {
             Bsdf::Diffuse(d) => d.eval(si, wi, wo, wl),
             Bsdf::Plastic(p) => p.eval(si, wi, wo, wl),
-            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::Polarizer(_) => S::zero(),
+            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::Polarizer(_) | Bsdf::Retarder(_) => S::zero(),
             Bsdf::TwoSided(t) => t.eval(si, wi, wo, wl),
         }
     }
@@ -151,7 +155,7 @@ impl Bsdf {
         match self {
             Bsdf::Diffuse(d) => d.pdf(wi, wo),
             Bsdf::Plastic(p) => p.pdf(wi, wo),
-            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::Polarizer(_) => 0.0,
+            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::Polarizer(_) | Bsdf::Retarder(_) => 0.0,
             Bsdf::TwoSided(t) => t.pdf(si, wi, wo),
         }
     }
@@ -175,6 +179,7 @@ impl Bsdf {
             Bsdf::ThinDielectric(d) => d.sample(si, wi, u1, wl),
             Bsdf::Plastic(p) => p.sample(si, wi, u1, u2, wl),
             Bsdf::Polarizer(p) => p.sample(si, wi, wl),
+            Bsdf::Retarder(r) => r.sample(si, wi, wl),
             Bsdf::TwoSided(t) => t.sample(si, wi, u1, u2, mode, wl),
         }
     }

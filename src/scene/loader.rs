@@ -8,7 +8,7 @@ use super::props::Props;
 use super::xml::{self, Child, ChildTarget, Kind, Node};
 use super::Scene;
 use crate::bsdf::dispersion::DispersiveInterface;
-use crate::bsdf::{Bsdf, Conductor, Lobe, Dielectric, Diffuse, Plastic, Polarizer, ThinDielectric, TwoSided};
+use crate::bsdf::{Bsdf, Conductor, Lobe, Dielectric, Diffuse, Plastic, Polarizer, Retarder, ThinDielectric, TwoSided};
 use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, PointLight, SpotLight};
 use crate::film::{FilmSpec, Filter, FilterKind};
 use crate::geometry::accel::Accel;
@@ -31,7 +31,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub const SHAPES: [&str; 6] = ["rectangle", "cube", "disk", "sphere", "obj", "ply"];
-pub const BSDFS: [&str; 7] = ["conductor", "dielectric", "diffuse", "plastic", "polarizer", "thindielectric", "twosided"];
+pub const BSDFS: [&str; 8] = ["conductor", "dielectric", "diffuse", "plastic", "polarizer", "retarder", "thindielectric", "twosided"];
 pub const TEXTURES: [&str; 2] = ["bitmap", "checkerboard"];
 pub const EMITTERS: [&str; 5] = ["area", "point", "spot", "constant", "directional"];
 pub const SENSORS: [&str; 2] = ["perspective", "orthographic"];
@@ -338,6 +338,11 @@ impl Loader {
                 theta: props.float_checked("theta", 0.0, f32::is_finite, "an angle in degrees")?.to_radians(),
                 transmittance: self.texture_input(&props, "transmittance", Rgb::WHITE)?,
                 polarizing: props.bool("polarizing", true)?,
+            }),
+            "retarder" => Bsdf::Retarder(Retarder {
+                theta: props.float_checked("theta", 0.0, f32::is_finite, "an angle in degrees")?.to_radians(),
+                delta: props.float_checked("delta", 90.0, f32::is_finite, "an angle in degrees")?.to_radians(),
+                transmittance: self.texture_input(&props, "transmittance", Rgb::WHITE)?,
             }),
             "conductor" => self.conductor(node, &props)?,
             "dielectric" | "thindielectric" => {
