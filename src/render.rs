@@ -44,6 +44,21 @@ pub struct RenderStats {
     pub invalid_samples: u64,
 }
 
+impl RenderStats {
+    /// `samples` (camera samples, or light paths) rendered in `seconds`.
+    fn new(scene: &Scene, threads: usize, seconds: f64, samples: f64, invalid_samples: u64) -> RenderStats {
+        RenderStats {
+            width: scene.film.width,
+            height: scene.film.height,
+            spp: scene.sampler.sample_count,
+            threads,
+            render_seconds: seconds,
+            samples_per_second: if seconds > 0.0 { samples / seconds } else { 0.0 },
+            invalid_samples,
+        }
+    }
+}
+
 fn thread_count(options: &RenderOptions) -> usize {
     if options.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { options.threads }
 }
@@ -127,15 +142,7 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
         film.merge(b);
     }
     let samples = w as f64 * h as f64 * spp as f64;
-    let stats = RenderStats {
-        width: w,
-        height: h,
-        spp,
-        threads,
-        render_seconds: seconds,
-        samples_per_second: if seconds > 0.0 { samples / seconds } else { 0.0 },
-        invalid_samples: invalid.into_inner(),
-    };
+    let stats = RenderStats::new(scene, threads, seconds, samples, invalid.into_inner());
     Ok((film.develop(), stats))
 }
 
@@ -210,15 +217,7 @@ fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options
             if v.is_finite() { v } else { Rgb::BLACK }
         })
         .collect();
-    let stats = RenderStats {
-        width: w,
-        height: h,
-        spp,
-        threads,
-        render_seconds: seconds,
-        samples_per_second: if seconds > 0.0 { total as f64 / seconds } else { 0.0 },
-        invalid_samples: invalid.into_inner(),
-    };
+    let stats = RenderStats::new(scene, threads, seconds, total as f64, invalid.into_inner());
     Ok((Image { width: w, height: h, pixels }, stats))
 }
 

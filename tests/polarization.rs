@@ -11,7 +11,10 @@ use common::*;
 use snell::spectrum::{Polarized, Rgb, Sampled};
 use std::path::Path;
 
-fn two_polarizers(theta_deg: f32) -> String {
+/// A white sky seen along the normal of parallel sheets (`shapes`, placed
+/// by their own transforms) by a narrow camera: Malus's law is for normal
+/// incidence, oblique rays see the axes' projections.
+fn sky_through_sheets(sheets: &str) -> String {
     format!(
         r#"<scene version="3.0.0">
     <integrator type="path"/>
@@ -22,16 +25,22 @@ fn two_polarizers(theta_deg: f32) -> String {
         <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/><rfilter type="box"/></film>
     </sensor>
     <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="10"/><translate z="1"/></transform>
-        <bsdf type="polarizer"><float name="theta" value="{theta_deg}"/></bsdf>
-    </shape>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="10"/><translate z="-1"/></transform>
-        <bsdf type="polarizer"/>
-    </shape>
+    {sheets}
 </scene>"#
     )
+}
+
+/// A 20 × 20 sheet at depth `z` with the given BSDF.
+fn sheet(z: f32, bsdf: &str) -> String {
+    format!(r#"<shape type="rectangle"><transform name="to_world"><scale value="10"/><translate z="{z}"/></transform>{bsdf}</shape>"#)
+}
+
+fn two_polarizers(theta_deg: f32) -> String {
+    sky_through_sheets(&(sheet(1.0, &format!(r#"<bsdf type="polarizer"><float name="theta" value="{theta_deg}"/></bsdf>"#)) + &sheet(-1.0, r#"<bsdf type="polarizer"/>"#)))
+}
+
+fn max_relative_difference(a: &snell::film::Image, b: &snell::film::Image) -> f32 {
+    a.pixels.iter().zip(&b.pixels).map(|(x, y)| (0..3).map(|c| (x[c] - y[c]).abs() / (y[c].abs() + 1e-3)).fold(0.0f32, f32::max)).fold(0.0f32, f32::max)
 }
 
 fn mean_intensity<S: snell::spectrum::Spectrum>(theta_deg: f32) -> [f64; 3] {
@@ -41,10 +50,8 @@ fn mean_intensity<S: snell::spectrum::Spectrum>(theta_deg: f32) -> [f64; 3] {
 
 #[test]
 fn malus_law_through_two_polarizer_sheets() {
-    // The camera looks along the sheets' normal (Malus's law is for normal
-    // incidence; oblique rays see the axes' projections). The canonical
-    // Stokes frames of the rays are not aligned with the sheets' axes, so the
-    // rotations into and out of them are exercised.
+    // The canonical Stokes frames of the rays are not aligned with the
+    // sheets' axes, so the rotations into and out of them are exercised.
     for deg in [0.0f32, 30.0, 45.0, 60.0, 90.0] {
         let malus = 0.5 * (deg.to_radians().cos()).powi(2) as f64;
         let m = mean_intensity::<Polarized<Rgb>>(deg);
@@ -73,11 +80,11 @@ fn polarized_mode_without_polarizers_matches_the_unpolarized_render() {
     let p = params(&[("res", "32")]);
     let a = average(&render_passes_as::<Polarized<Rgb>>(&scene, None, p.clone(), 1, 8));
     let b = average(&render_passes_as::<Rgb>(&scene, None, p.clone(), 1, 8));
-    let worst = a.pixels.iter().zip(&b.pixels).map(|(x, y)| (0..3).map(|c| (x[c] - y[c]).abs() / (y[c].abs() + 1e-3)).fold(0.0f32, f32::max)).fold(0.0f32, f32::max);
+    let worst = max_relative_difference(&a, &b);
     assert!(worst < 1e-4, "largest relative difference {worst}");
     let a = average(&render_passes_as::<Polarized<Sampled>>(&scene, None, p.clone(), 1, 8));
     let b = average(&render_passes_as::<Sampled>(&scene, None, p, 1, 8));
-    let worst = a.pixels.iter().zip(&b.pixels).map(|(x, y)| (0..3).map(|c| (x[c] - y[c]).abs() / (y[c].abs() + 1e-3)).fold(0.0f32, f32::max)).fold(0.0f32, f32::max);
+    let worst = max_relative_difference(&a, &b);
     assert!(worst < 1e-4, "spectral: largest relative difference {worst}");
 }
 
@@ -189,7 +196,7 @@ fn conductor_intensity_matches_the_unpolarized_render() {
             } else {
                 (average(&render_passes_as::<Polarized<Rgb>>(path, Some(&text), params(&[]), 1, 8)), average(&render_passes_as::<Rgb>(path, Some(&text), params(&[]), 1, 8)))
             };
-            let worst = a.pixels.iter().zip(&b.pixels).map(|(x, y)| (0..3).map(|c| (x[c] - y[c]).abs() / (y[c].abs() + 1e-3)).fold(0.0f32, f32::max)).fold(0.0f32, f32::max);
+            let worst = max_relative_difference(&a, &b);
             assert!(worst < 1e-4, "{material}, spectral {spectral}: largest relative difference {worst}");
         }
     }
@@ -204,29 +211,10 @@ fn conductor_intensity_matches_the_unpolarized_render() {
 #[test]
 fn wave_plates_between_polarizers() {
     let scene = |plate_theta: f32, delta: f32, analyzer: f32| {
-        format!(
-            r#"<scene version="3.0.0">
-    <integrator type="path"/>
-    <sensor type="perspective">
-        <float name="fov" value="2"/>
-        <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
-        <sampler type="independent"><integer name="sample_count" value="4"/></sampler>
-        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/><rfilter type="box"/></film>
-    </sensor>
-    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="10"/><translate z="-1"/></transform>
-        <bsdf type="polarizer"/>
-    </shape>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="10"/></transform>
-        <bsdf type="retarder"><float name="theta" value="{plate_theta}"/><float name="delta" value="{delta}"/></bsdf>
-    </shape>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="10"/><translate z="1"/></transform>
-        <bsdf type="polarizer"><float name="theta" value="{analyzer}"/></bsdf>
-    </shape>
-</scene>"#
+        sky_through_sheets(
+            &(sheet(-1.0, r#"<bsdf type="polarizer"/>"#)
+                + &sheet(0.0, &format!(r#"<bsdf type="retarder"><float name="theta" value="{plate_theta}"/><float name="delta" value="{delta}"/></bsdf>"#))
+                + &sheet(1.0, &format!(r#"<bsdf type="polarizer"><float name="theta" value="{analyzer}"/></bsdf>"#))),
         )
     };
     let render = |text: String, polarized: bool| {

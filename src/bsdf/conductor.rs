@@ -28,7 +28,7 @@ use super::fresnel::{fresnel_conductor, reflect};
 use super::{BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
 use super::metal_spectra::MetalSpectra;
-use crate::spectrum::mueller::{conductor_reflection, interface_to_canonical, perfect_mirror};
+use crate::spectrum::mueller::{conductor_parameters, interface_from_parameters, interface_to_canonical};
 use crate::spectrum::{Rgb, Spectrum};
 use crate::texture::Texture;
 use glam::Vec3;
@@ -71,11 +71,22 @@ impl Conductor {
             let (eta, k) = self.index::<S>(wl);
             let (eta, k) = (eta.channels(), k.channels());
             let (n, incident, outgoing) = (si.frame.n, -si.to_world(wo), si.to_world(wi));
+            // The s/p matrix is linear in its four parameters, and so is the
+            // change to canonical frames: rotate the four unit matrices once,
+            // then combine them with each channel's parameters.
+            let unit = |i: usize| {
+                let mut p = [0.0; 4];
+                p[i] = 1.0;
+                interface_to_canonical(interface_from_parameters(p), n, incident, outgoing)
+            };
+            let basis = [unit(0), unit(1), unit(2), unit(3)];
+            let params = [0, 1, 2, 3].map(|i| eta.zip_map(k, |e, kk| conductor_parameters(wo.z, e, kk)[i]));
             S::mueller_channels(|r, c| {
-                eta.zip_map(k, |e, kk| {
-                    let m = if e == 0.0 && kk == 0.0 { perfect_mirror() } else { conductor_reflection(wo.z, e, kk) };
-                    interface_to_canonical(m, n, incident, outgoing).col(c)[r]
-                })
+                let mut v = params[0] * basis[0].col(c)[r];
+                for i in 1..4 {
+                    v += params[i] * basis[i].col(c)[r];
+                }
+                v
             }) * scale
         } else {
             self.fresnel::<S>(wi.z, wl) * scale

@@ -28,7 +28,7 @@
 
 use super::{BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
-use crate::spectrum::mueller::{linear_polarizer, rotate_mueller_basis, stokes_basis};
+use crate::spectrum::mueller::{linear_polarizer, sheet_to_canonical};
 use crate::spectrum::Spectrum;
 use crate::texture::Texture;
 use glam::{Mat4, Vec3};
@@ -50,16 +50,9 @@ impl Polarizer {
             scale
         } else {
             // Light travels from the wo side to the wi side: along w = wi.
-            let w = si.to_world(wi);
+            // Grazing along the axis, nothing sensible passes.
             let axis = si.to_world(Vec3::new(self.theta.cos(), self.theta.sin(), 0.0));
-            let axis = (axis - w * axis.dot(w)).normalize_or_zero();
-            let m = if axis == Vec3::ZERO {
-                // Grazing along the axis: nothing sensible passes.
-                Mat4::ZERO
-            } else {
-                let basis = stokes_basis(w);
-                rotate_mueller_basis(linear_polarizer(0.0), w, axis, basis, w, axis, basis)
-            };
+            let m = sheet_to_canonical(linear_polarizer(0.0), si.to_world(wi), axis).unwrap_or(Mat4::ZERO);
             S::mueller(m, scale)
         };
         Some(BsdfSample { wo, weight, pdf: 1.0, eta: 1.0, lobe: Lobe::DELTA_TRANSMISSION })

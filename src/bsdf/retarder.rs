@@ -20,7 +20,7 @@
 
 use super::{BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
-use crate::spectrum::mueller::{linear_retarder, rotate_mueller_basis, stokes_basis};
+use crate::spectrum::mueller::{linear_retarder, sheet_to_canonical};
 use crate::spectrum::Spectrum;
 use crate::texture::Texture;
 use glam::{Mat4, Vec3};
@@ -40,15 +40,8 @@ impl Retarder {
         let scale: S = self.transmittance.eval_spectrum(si.uv, wl);
         let weight = if S::POLARIZED {
             // Light travels along w = wi; the plate's axes projected across it.
-            let w = si.to_world(wi);
             let axis = si.to_world(Vec3::new(self.theta.cos(), self.theta.sin(), 0.0));
-            let axis = (axis - w * axis.dot(w)).normalize_or_zero();
-            let m = if axis == Vec3::ZERO {
-                Mat4::IDENTITY
-            } else {
-                let basis = stokes_basis(w);
-                rotate_mueller_basis(linear_retarder(0.0, self.delta), w, axis, basis, w, axis, basis)
-            };
+            let m = sheet_to_canonical(linear_retarder(0.0, self.delta), si.to_world(wi), axis).unwrap_or(Mat4::IDENTITY);
             S::mueller(m, scale)
         } else {
             scale

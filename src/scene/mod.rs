@@ -29,6 +29,22 @@ use crate::sensor::Camera;
 use crate::spectrum::Spectrum;
 use glam::{Vec2, Vec3};
 
+/// Emitter sample of a light at the single point `position` seen from `p`:
+/// `intensity` times `falloff(direction of emission)` over the squared distance.
+fn point_light_sample<S: Spectrum>(p: Vec3, position: Vec3, falloff: impl Fn(Vec3) -> f32, intensity: S) -> Option<EmitterSample<S>> {
+    let v = position - p;
+    let dist2 = v.length_squared();
+    if dist2 <= 0.0 {
+        return None;
+    }
+    let dist = dist2.sqrt();
+    let f = falloff(-v / dist);
+    if f <= 0.0 {
+        return None;
+    }
+    Some(EmitterSample { d: v / dist, dist, p: Some(position), n: Vec3::ZERO, weight: intensity * (f / dist2), pdf: 0.0, delta: true })
+}
+
 /// The start of a light path.
 pub struct EmissionSample<S> {
     pub ray: Ray,
@@ -158,44 +174,8 @@ impl Scene {
                     delta: false,
                 }
             }
-            Emitter::Point(pl) => {
-                let v = pl.position - si.p;
-                let dist2 = v.length_squared();
-                if dist2 <= 0.0 {
-                    return None;
-                }
-                let dist = dist2.sqrt();
-                EmitterSample {
-                    d: v / dist,
-                    dist,
-                    p: Some(pl.position),
-                    n: Vec3::ZERO,
-                    weight: pl.intensity.eval::<S>(wl) / (dist2 * pmf),
-                    pdf: 0.0,
-                    delta: true,
-                }
-            }
-            Emitter::Spot(sl) => {
-                let v = sl.position - si.p;
-                let dist2 = v.length_squared();
-                if dist2 <= 0.0 {
-                    return None;
-                }
-                let dist = dist2.sqrt();
-                let falloff = sl.falloff(-v / dist);
-                if falloff <= 0.0 {
-                    return None;
-                }
-                EmitterSample {
-                    d: v / dist,
-                    dist,
-                    p: Some(sl.position),
-                    n: Vec3::ZERO,
-                    weight: sl.intensity.eval::<S>(wl) * (falloff / (dist2 * pmf)),
-                    pdf: 0.0,
-                    delta: true,
-                }
-            }
+            Emitter::Point(pl) => point_light_sample(si.p, pl.position, |_| 1.0, pl.intensity.eval::<S>(wl) / pmf)?,
+            Emitter::Spot(sl) => point_light_sample(si.p, sl.position, |d| sl.falloff(d), sl.intensity.eval::<S>(wl) / pmf)?,
             Emitter::Directional(dl) => EmitterSample {
                 d: -dl.direction,
                 dist: f32::INFINITY,

@@ -77,11 +77,21 @@ pub fn rotate_element(m: Mat4, theta: f32) -> Mat4 {
 /// `a_s`, `a_p` (s/p frame): intensities scale by |a|², and the
 /// components' relative phase δ = arg(a_s) − arg(a_p) turns S2 into S3.
 fn interface(a_s: Complex32, a_p: Complex32) -> Mat4 {
+    interface_from_parameters(interface_parameters(a_s, a_p))
+}
+
+/// The four numbers an interface's Mueller matrix is made of (s/p frames):
+/// ½(|a_s|² + |a_p|²), ½(|a_s|² − |a_p|²) and the real and imaginary parts
+/// of a_s·conj(a_p) = |a_s||a_p| e^{iδ}.
+pub fn interface_parameters(a_s: Complex32, a_p: Complex32) -> [f32; 4] {
     let (r_s, r_p) = (a_s.norm_sqr(), a_p.norm_sqr());
-    let (a, b) = (0.5 * (r_s + r_p), 0.5 * (r_s - r_p));
-    // a_s · conj(a_p) = |a_s||a_p| e^{iδ}.
     let cross = a_s * a_p.conj();
-    let (c_cos, c_sin) = (cross.re, cross.im);
+    [0.5 * (r_s + r_p), 0.5 * (r_s - r_p), cross.re, cross.im]
+}
+
+/// The interface matrix from its [`interface_parameters`] (a, b, c cos δ,
+/// c sin δ); linear in them.
+pub fn interface_from_parameters([a, b, c_cos, c_sin]: [f32; 4]) -> Mat4 {
     Mat4::from_cols(
         Vec4::new(a, b, 0.0, 0.0),
         Vec4::new(b, a, 0.0, 0.0),
@@ -95,12 +105,10 @@ fn interface(a_s: Complex32, a_p: Complex32) -> Mat4 {
 /// `eta` = η_int / η_ext. Under total internal reflection |r| = 1 and the
 /// phases differ: the evanescent wave's cos θ_t is taken as +i·√(sin²θ_t − 1).
 pub fn dielectric_amplitudes(cos_i: f32, eta: f32) -> (Complex32, Complex32) {
+    // From inside, the same interface seen with the reciprocal index. The
+    // complex square root in `fresnel_amplitudes` takes the +i branch under TIR.
     let (eta, cos_i) = if cos_i >= 0.0 { (eta, cos_i) } else { (1.0 / eta, -cos_i) };
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    let cos_t = if sin2_t <= 1.0 { Complex32::new((1.0 - sin2_t).sqrt(), 0.0) } else { Complex32::new(0.0, (sin2_t - 1.0).sqrt()) };
-    let eta = Complex32::new(eta, 0.0);
-    let r_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let (r_p, r_s) = fresnel_amplitudes(cos_i, Complex32::new(eta, 0.0));
     (r_s, r_p)
 }
 
@@ -113,16 +121,22 @@ pub fn specular_reflection(cos_i: f32, eta: f32) -> Mat4 {
 
 /// Reflection at a conductor of complex relative index `eta` + i`k`.
 pub fn conductor_reflection(cos_i: f32, eta: f32, k: f32) -> Mat4 {
-    let (r_p, r_s) = fresnel_amplitudes(cos_i, Complex32::new(eta, k));
-    interface(r_s, r_p)
+    interface_from_parameters(conductor_parameters(cos_i, eta, k))
 }
 
-/// A perfect mirror (Mitsuba's conductor `none`, the limit η → ∞): every
-/// polarisation reflected in full, r_s = −1 and r_p = 1 (the mirror flip of
-/// S2 and S3 in the s/p frames).
-pub fn perfect_mirror() -> Mat4 {
-    interface(Complex32::new(-1.0, 0.0), Complex32::new(1.0, 0.0))
+/// The [`interface_parameters`] of a conductor; η = k = 0 is Mitsuba's
+/// "no Fresnel" perfect mirror.
+pub fn conductor_parameters(cos_i: f32, eta: f32, k: f32) -> [f32; 4] {
+    if eta == 0.0 && k == 0.0 {
+        return PERFECT_MIRROR;
+    }
+    let (r_p, r_s) = fresnel_amplitudes(cos_i, Complex32::new(eta, k));
+    interface_parameters(r_s, r_p)
 }
+
+/// A perfect mirror (the limit η → ∞): r_s = −1, r_p = 1, every polarisation
+/// reflected in full with S2 and S3 mirrored in the s/p frames.
+const PERFECT_MIRROR: [f32; 4] = [1.0, 0.0, -1.0, 0.0];
 
 /// Transmission through a dielectric interface (s/p frames): the power
 /// transmittances T = (η_t cos θ_t / η_i cos θ_i)|t|², with t_s = 1 + r_s and
@@ -186,6 +200,19 @@ pub fn interface_to_canonical(m_sp: Mat4, n: Vec3, in_forward: Vec3, out_forward
     let s = in_forward.cross(n);
     let s = if s.length_squared() > 1e-12 { s.normalize() } else { stokes_basis(in_forward) };
     rotate_mueller_basis(m_sp, in_forward, s, stokes_basis(in_forward), out_forward, s, stokes_basis(out_forward))
+}
+
+/// A thin sheet's element `m` (defined with its axis along the frame's x)
+/// for light travelling along `w`, the sheet's axis being `axis`:
+/// re-expressed in the canonical Stokes frame of `w`, with the axis
+/// projected across `w`. `None` when light travels along the axis itself.
+pub fn sheet_to_canonical(m: Mat4, w: Vec3, axis: Vec3) -> Option<Mat4> {
+    let axis = (axis - w * axis.dot(w)).normalize_or_zero();
+    if axis == Vec3::ZERO {
+        return None;
+    }
+    let basis = stokes_basis(w);
+    Some(rotate_mueller_basis(m, w, axis, basis, w, axis, basis))
 }
 
 /// Degree of (total) polarisation of a Stokes vector.
