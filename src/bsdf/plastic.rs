@@ -21,6 +21,16 @@
 //! diffuse lobe by cosine. `eval`/`pdf` cover the diffuse lobe only (the
 //! specular one is a delta). One-sided: the back is black.
 //!
+//! Polarisation (polarized modes): the coating reflects by the Fresnel
+//! equations in Mueller form, like `dielectric`'s reflection
+//! (`mueller::specular_reflection`, whose m₀₀ is F_i; at Brewster's angle
+//! it reflects s-polarised light only); the diffuse lobe is a depolarizer
+//! scaled by f_d cos θ_o above, since the base forgets the polarisation of
+//! what it scatters. Mitsuba 3 depolarises both lobes. Not modelled: the
+//! partial p-polarisation that the coating's transmission (T_p > T_s) gives
+//! the diffuse light on its way out, and on its way in. S0 of unpolarised
+//! input is the unpolarised value in both lobes.
+//!
 //! | parameter | type | default | meaning |
 //! |---|---|---|---|
 //! | `diffuse_reflectance` | rgb / spectrum / float / texture | 0.5 | base albedo ρ |
@@ -41,6 +51,7 @@ use super::{BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
 use crate::math::sampling::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
 use crate::spectrum::Spectrum;
+use crate::spectrum::mueller::{interface_to_canonical, specular_reflection};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
 
@@ -80,7 +91,8 @@ impl Plastic {
         if s + d > 0.0 { s / (s + d) } else { 0.0 }
     }
 
-    /// ρ' (the base albedo with the internal bounces summed), times (1 − F_i)(1 − F_o)/η².
+    /// ρ' (the base albedo with the internal bounces summed), times
+    /// (1 − F_i)(1 − F_o)/η²; a depolarizer in the polarized modes.
     #[inline]
     fn diffuse_albedo<S: Spectrum>(&self, si: &SurfaceInteraction, f_i: f32, f_o: f32, wl: &S::Wavelengths) -> S {
         let fdr = self.fdr_int;
@@ -89,7 +101,7 @@ impl Plastic {
         } else {
             self.diffuse_reflectance.eval_spectrum_map(si.uv, wl, |r| r / (1.0 - fdr))
         };
-        rho * (self.inv_eta2 * (1.0 - f_i) * (1.0 - f_o))
+        rho.depolarize() * (self.inv_eta2 * (1.0 - f_i) * (1.0 - f_o))
     }
 
     #[inline]
@@ -120,9 +132,19 @@ impl Plastic {
         let p_s = self.prob_specular(f_i);
         if u1 < p_s {
             let scale: S = self.specular_reflectance.as_ref().map_or(S::splat(1.0), |t| t.eval_spectrum(si.uv, wl));
+            let wo = reflect(wi);
+            let weight = if S::POLARIZED {
+                // The coating's Fresnel matrix (m₀₀ = F_i); light arrives
+                // along −wo and leaves along wi (towards the camera).
+                let m = specular_reflection(wo.z, self.eta);
+                let m = interface_to_canonical(m, si.frame.n, -si.to_world(wo), si.to_world(wi));
+                S::mueller(m, scale) * (1.0 / p_s)
+            } else {
+                scale * (f_i / p_s)
+            };
             return Some(BsdfSample {
-                wo: reflect(wi),
-                weight: scale * (f_i / p_s),
+                wo,
+                weight,
                 pdf: p_s,
                 eta: 1.0,
                 lobe: Lobe::DELTA_REFLECTION,
@@ -151,9 +173,93 @@ mod tests {
     use crate::spectrum::Rgb;
     use crate::bsdf::{Bsdf, TransportMode};
     use crate::math::Pcg32;
+    use crate::spectrum::Polarized;
+    use crate::spectrum::mueller::degree_of_polarization;
+    use glam::Vec4;
 
     fn plastic(rho: Rgb, eta: f32, nonlinear: bool) -> Bsdf {
         Bsdf::Plastic(Plastic::new(Texture::constant(rho), None, eta, nonlinear))
+    }
+
+    /// A tinted coating over a coloured base, on a surface whose normal is
+    /// not a coordinate axis (the canonical Stokes frames turn against s/p).
+    fn tinted() -> (Plastic, SurfaceInteraction) {
+        let p = Plastic::new(Texture::constant(Rgb::new(0.7, 0.4, 0.1)), Some(Texture::constant(Rgb::new(0.8, 0.9, 1.0))), 1.49, true);
+        let n = Vec3::new(-0.4, 0.2, 0.9).normalize();
+        (p, SurfaceInteraction { n, frame: crate::math::Frame::from_normal(n), ..dummy_interaction() })
+    }
+
+    fn stokes(w: &Polarized<Rgb>) -> Vec4 {
+        let s = w.stokes();
+        Vec4::new(s[0][0], s[1][0], s[2][0], s[3][0])
+    }
+
+    /// Every entry but m₀₀ is zero: a depolarizer.
+    fn is_depolarizer(w: &Polarized<Rgb>) -> bool {
+        (0..4).all(|r| (0..4).all(|c| (r == 0 && c == 0) || w.0[r][c].is_zero())) && !w.0[0][0].is_zero()
+    }
+
+    #[test]
+    fn polarized_weights_have_the_unpolarized_intensity() {
+        let (p, si) = tinted();
+        let mut rng = Pcg32::new(21, 4);
+        let (mut worst, mut polarizing, mut lobes) = (0.0f32, 0, [0; 2]);
+        for _ in 0..4000 {
+            let wi = square_to_cosine_hemisphere(Vec2::new(rng.next_f32(), rng.next_f32()));
+            let (u1, u2) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
+            let a = p.sample::<Rgb>(&si, wi, u1, u2, &());
+            let b = p.sample::<Polarized<Rgb>>(&si, wi, u1, u2, &());
+            let (Some(a), Some(b)) = (a, b) else {
+                assert!(a.is_none() && b.is_none());
+                continue;
+            };
+            assert!(a.lobe == b.lobe && a.pdf == b.pdf && a.wo == b.wo);
+            for c in 0..3 {
+                worst = worst.max((b.weight.0[0][0][c] - a.weight[c]).abs());
+            }
+            if a.lobe == Lobe::DELTA_REFLECTION {
+                lobes[0] += 1;
+                if degree_of_polarization(stokes(&b.weight)) > 0.05 {
+                    polarizing += 1;
+                }
+            } else {
+                lobes[1] += 1;
+                assert!(is_depolarizer(&b.weight), "{:?}", b.weight);
+            }
+            // Next-event estimation's side: eval of a random direction.
+            let wo = square_to_cosine_hemisphere(Vec2::new(rng.next_f32(), rng.next_f32()));
+            let (fa, fb): (Rgb, Polarized<Rgb>) = (p.eval(&si, wi, wo, &()), p.eval(&si, wi, wo, &()));
+            for c in 0..3 {
+                worst = worst.max((fb.0[0][0][c] - fa[c]).abs());
+            }
+            assert!(fa.is_zero() || is_depolarizer(&fb), "{fb:?}");
+        }
+        eprintln!("largest |m00 − unpolarised value| {worst:e}; lobes {lobes:?}, {polarizing} specular samples polarise by > 5 %");
+        assert!(worst < 1e-5, "{worst}");
+        assert!(lobes[0] > 200 && lobes[1] > 200 && polarizing > lobes[0] / 2, "{lobes:?} {polarizing}");
+    }
+
+    #[test]
+    fn coating_reflects_s_polarized_light_at_brewsters_angle() {
+        let (p, si) = tinted();
+        let brewster = p.eta.atan();
+        for phi in [0.0f32, 1.3, 3.0, 5.0] {
+            let wi = incident(brewster, phi);
+            let s = p.sample::<Polarized<Rgb>>(&si, wi, 0.0, Vec2::splat(0.5), &()).expect("front side");
+            assert_eq!(s.lobe, Lobe::DELTA_REFLECTION);
+            let dop = degree_of_polarization(stokes(&s.weight));
+            eprintln!("φ {phi}: DoP of the specular reflection {dop:.6}");
+            assert!((dop - 1.0).abs() < 1e-4, "φ {phi}: {dop}");
+            // The diffuse lobe at the same angle: unpolarised whatever comes in.
+            let s = p.sample::<Polarized<Rgb>>(&si, wi, 0.999_999, Vec2::new(0.3, 0.6), &()).expect("front side");
+            assert_eq!(s.lobe, Lobe::DIFFUSE_REFLECTION);
+            assert!(is_depolarizer(&s.weight), "{:?}", s.weight);
+            assert!(is_depolarizer(&p.eval::<Polarized<Rgb>>(&si, wi, s.wo, &())));
+        }
+        // Off Brewster's angle the coating only partly polarises.
+        let s = p.sample::<Polarized<Rgb>>(&si, incident(0.5, 0.0), 0.0, Vec2::splat(0.5), &()).expect("front side");
+        assert_eq!(s.lobe, Lobe::DELTA_REFLECTION);
+        assert!(degree_of_polarization(stokes(&s.weight)) < 0.95);
     }
 
     #[test]
