@@ -107,16 +107,19 @@ impl Bsdf {
     }
 
     /// Whether the polarized modes model this BSDF's effect on polarisation
-    /// (diffuse surfaces depolarise, polarizers polarise, smooth dielectrics
-    /// and conductors reflect and refract by the Fresnel equations in Mueller
-    /// form); the others have no
-    /// Mueller form yet, and the polarized modes refuse scenes with them.
+    /// (diffuse surfaces depolarise, polarizers and retarders polarise and
+    /// retard, smooth dielectrics and conductors reflect and refract by the
+    /// Fresnel equations in Mueller form, thin dielectrics by the same summed
+    /// over the slab's internal bounces, plastic's coating reflects by them
+    /// over a depolarising base). Every BSDF has one now; the match is
+    /// exhaustive so that a new BSDF must say whether it has one, and the
+    /// polarized modes refuse scenes with a BSDF that answers false.
     pub fn has_mueller_model(&self) -> bool {
         match self {
             Bsdf::Diffuse(_) | Bsdf::Polarizer(_) | Bsdf::Retarder(_) => true,
             Bsdf::Dielectric(_) | Bsdf::Conductor(_) => true,
+            Bsdf::ThinDielectric(_) | Bsdf::Plastic(_) => true,
             Bsdf::TwoSided(t) => t.has_mueller_model(),
-            _ => false,
         }
     }
 
