@@ -52,10 +52,15 @@ struct RenderArgs {
     /// What a light path carries: RGB triples (as Mitsuba's *_rgb variants),
     /// four sampled wavelengths (as its *_spectral variants; needed for
     /// dispersion), or either with a Mueller matrix per channel (as its
-    /// *_polarized variants; so far for scenes of diffuse surfaces, smooth
-    /// dielectrics and conductors, and polarizers, and the image is S0).
+    /// *_polarized variants). Polarized renders write the Stokes components
+    /// S0–S3 as extra EXR channels (S1.R, …, S3.B), measured in the camera's
+    /// frame with S1 > 0 for horizontal polarization.
     #[arg(long, value_enum, default_value_t = Mode::Rgb)]
     mode: Mode,
+    /// Also write a false-colour PNG of the linear polarization (hue: angle,
+    /// brightness: degree) to this file. Needs a polarized --mode.
+    #[arg(long, value_name = "FILE.png")]
+    stokes_view: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -108,6 +113,7 @@ fn default_render() -> anyhow::Result<RenderArgs> {
         stats: None,
         quiet: false,
         mode: Mode::Rgb,
+        stokes_view: None,
     })
 }
 
@@ -134,11 +140,29 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
             anyhow::bail!("cannot tell the image format of {}: use one of .{}", o.display(), Format::EXTENSIONS.join(", ."));
         }
     }
+    let polarized = matches!(args.mode, Mode::RgbPolarized | Mode::SpectralPolarized);
+    if let Some(view) = &args.stokes_view {
+        if !polarized {
+            anyhow::bail!("--stokes-view needs a polarized mode: add --mode rgb-polarized or --mode spectral-polarized");
+        }
+        if Format::from_path(view) != Some(Format::Png) {
+            anyhow::bail!("--stokes-view {}: the polarization view is written as .png", view.display());
+        }
+    }
 
     let load_start = std::time::Instant::now();
     let options = LoadOptions { params, spp: args.spp, seed: args.seed };
     let scene = snell::load_file(&args.scene, &options)?;
-    if matches!(args.mode, Mode::RgbPolarized | Mode::SpectralPolarized) {
+    if polarized && matches!(scene.integrator, snell::integrator::Integrator::Particle(_)) {
+        anyhow::bail!(
+            "{}: the polarized modes need a camera-path integrator (path or direct); particle tracing (ptracer) does not carry polarization",
+            args.scene.display()
+        );
+    }
+    if scene.stokes_requested && !polarized && !args.quiet {
+        eprintln!("warning: the scene's stokes integrator writes S1–S3 only in a polarized mode (--mode rgb-polarized or spectral-polarized); writing the intensity image");
+    }
+    if polarized {
         if let Some(b) = scene.bsdfs.iter().find(|b| !b.has_mueller_model()) {
             anyhow::bail!(
                 "{}: the polarized modes support diffuse, dielectric, conductor, polarizer and retarder BSDFs so far; this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
@@ -163,6 +187,10 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
     };
     for o in &outputs {
         write_image(&image, o)?;
+    }
+    if let Some(view) = &args.stokes_view {
+        let picture = snell::film::stokes::stokes_view(&image).context("the render has no Stokes layers")?;
+        write_image(&picture, view)?;
     }
     if let Some(path) = &args.stats {
         let mut json = serde_json::to_value(&stats)?;

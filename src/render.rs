@@ -8,7 +8,8 @@ use crate::spectrum::Rgb;
 use crate::sampler::Sampler;
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;
-use glam::Vec2;
+use crate::spectrum::mueller::{rotate_stokes_basis, stokes_basis};
+use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -86,6 +87,7 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
     let (w, h) = (scene.film.width, scene.film.height);
     let spp = scene.sampler.sample_count;
     let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
+    let up = scene.camera.up();
 
     let mut tiles = vec![];
     for ty in (0..h).step_by(TILE as usize) {
@@ -108,6 +110,9 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
                     (tw as i32 + 2 * border) as usize,
                     (th as i32 + 2 * border) as usize,
                 );
+                if S::POLARIZED {
+                    buf = buf.with_stokes();
+                }
                 let mut bad = 0u64;
                 for y in ty..ty + th {
                     for x in tx..tx + tw {
@@ -118,9 +123,18 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
                             let ray = scene.camera.generate_ray(pos * inv_size);
                             let l: S = scene.integrator.li(scene, ray, &mut sampler, &mut wl);
                             let mut rgb = l.to_rgb(&wl);
+                            if S::POLARIZED {
+                                let mut s123 = camera_stokes(&l, ray.d, up, &wl);
+                                if !rgb.is_finite() || !s123.iter().all(Rgb::is_finite) {
+                                    bad += 1;
+                                    (rgb, s123) = (Rgb::BLACK, [Rgb::BLACK; 3]);
+                                }
+                                buf.splat_stokes(&scene.film.filter, (pos.x, pos.y), rgb, s123);
+                                continue;
+                            }
                             if !rgb.is_finite() {
                                 bad += 1;
-                                rgb = crate::spectrum::Rgb::BLACK;
+                                rgb = Rgb::BLACK;
                             }
                             buf.splat(&scene.film.filter, (pos.x, pos.y), rgb);
                         }
@@ -138,12 +152,33 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
     bar.finish_and_clear();
 
     let mut film = Film::new(w, h);
+    if S::POLARIZED {
+        film = film.with_stokes();
+    }
     for b in &buffers {
         film.merge(b);
     }
     let samples = w as f64 * h as f64 * spp as f64;
     let stats = RenderStats::new(scene, threads, seconds, samples, invalid.into_inner());
     Ok((film.develop(), stats))
+}
+
+/// S1, S2, S3 (as film RGB) of the light a camera ray along `d` brings back,
+/// measured in the camera's frame as Mitsuba's `stokes` integrator does:
+/// the reference direction is d × up (the image's right, for a camera not
+/// rolled), so S1 > 0 is light polarized horizontally in the image, S2 > 0
+/// along the diagonal from bottom left to top right, S3 > 0 right-circular.
+fn camera_stokes<S: Spectrum>(l: &S, d: Vec3, up: Vec3, wl: &S::Wavelengths) -> [Rgb; 3] {
+    let [_, s1, s2, s3] = l.stokes();
+    // The light travels along −d; integrators give its Stokes vector in the
+    // canonical frame of −d.
+    let forward = -d;
+    let target = d.cross(up);
+    let r = if target.length_squared() > 1e-12 { rotate_stokes_basis(forward, stokes_basis(forward), target) } else { glam::Mat4::IDENTITY };
+    // Rotating the frame mixes S1 and S2 only (glam matrices are column-major).
+    let s1r = s1 * r.y_axis.y + s2 * r.z_axis.y;
+    let s2r = s1 * r.y_axis.z + s2 * r.z_axis.z;
+    [s1r.to_rgb(wl), s2r.to_rgb(wl), s3.to_rgb(wl)]
 }
 
 /// Light paths are split into this many batches whatever the thread count,
@@ -218,7 +253,7 @@ fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options
         })
         .collect();
     let stats = RenderStats::new(scene, threads, seconds, total as f64, invalid.into_inner());
-    Ok((Image { width: w, height: h, pixels }, stats))
+    Ok((Image::new(w, h, pixels), stats))
 }
 
 /// Adds `value` at film position `pos` (pixels) to a full-film buffer with a

@@ -48,7 +48,7 @@ fn expected_floor_image(scene_path: &Path, text: &str, radiance: impl Fn(Vec3) -
             pixels.push(acc / 16.0);
         }
     }
-    Image { width: w, height: h, pixels }
+    Image::new(w, h, pixels)
 }
 
 const FLOOR_CAMERA: &str = r#"
@@ -154,7 +154,7 @@ fn white_furnace_is_one_everywhere() {
     );
     let path = Path::new("white-furnace.xml");
     let passes = render_passes(path, Some(&text), Default::default(), 16, 16);
-    let ones = Image { width: 64, height: 48, pixels: vec![Rgb::WHITE; 64 * 48] };
+    let ones = Image::new(64, 48, vec![Rgb::WHITE; 64 * 48]);
     compare(&passes, &ones, 8, 0.0).assert_unbiased("white furnace", 0.005);
 }
 
@@ -185,7 +185,7 @@ fn furnace_convex_object_renders_its_albedo() {
             pixels.push(rho * f + Rgb::WHITE * (1.0 - f));
         }
     }
-    let expected = Image { width: w, height: h, pixels };
+    let expected = Image::new(w, h, pixels);
     let passes = render_passes(path, Some(&text), Default::default(), 16, 16);
     compare(&passes, &expected, 8, 0.0).assert_unbiased("coloured furnace", 0.005);
 }

@@ -13,13 +13,14 @@ use std::path::Path;
 
 /// A white sky seen along the normal of parallel sheets (`shapes`, placed
 /// by their own transforms) by a narrow camera: Malus's law is for normal
-/// incidence, oblique rays see the axes' projections.
+/// incidence (oblique rays see the axes' projections, and a wave plate's
+/// retardance falls off as cos θ_i); 0.2° keeps rays within 0.15° of it.
 fn sky_through_sheets(sheets: &str) -> String {
     format!(
         r#"<scene version="3.0.0">
     <integrator type="path"/>
     <sensor type="perspective">
-        <float name="fov" value="2"/>
+        <float name="fov" value="0.2"/>
         <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
         <sampler type="independent"><integer name="sample_count" value="4"/></sampler>
         <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/><rfilter type="box"/></film>
@@ -88,91 +89,65 @@ fn polarized_mode_without_polarizers_matches_the_unpolarized_render() {
     assert!(worst < 1e-4, "spectral: largest relative difference {worst}");
 }
 
-/// Scenes with BSDFs that have no Mueller model yet are refused in the
-/// polarized modes, with a message saying so, instead of rendering
-/// polarisation wrongly.
+/// Particle tracing does not carry polarization: the polarized modes refuse
+/// it with a message; and `--stokes-view` needs a polarized mode.
 #[test]
-fn polarized_modes_refuse_bsdfs_without_a_mueller_model() {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_snell"))
-        .args(["render", "tests/scenes/plastic.xml", "--mode", "rgb-polarized", "-D", "res=8", "--spp", "1", "-q", "-o"])
-        .arg(std::env::temp_dir().join("snell-polarized-refused.exr"))
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run snell");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("polarized modes support diffuse, dielectric, conductor, polarizer and retarder") && stderr.contains("\"plastic\" BSDF"), "{stderr}");
+fn polarized_modes_refuse_what_they_cannot_render() {
+    let run = |args: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_snell"))
+            .args(args)
+            .args(["-D", "res=8", "--spp", "1", "-q", "-o"])
+            .arg(std::env::temp_dir().join("snell-polarized-refused.exr"))
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .expect("run snell");
+        (out.status.code(), String::from_utf8_lossy(&out.stderr).to_string())
+    };
+    let (code, stderr) = run(&["render", "scenes/prism.xml", "--mode", "spectral-polarized"]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("particle tracing (ptracer) does not carry polarization"), "{stderr}");
+    let (code, stderr) = run(&["render", "tests/scenes/plastic.xml", "--stokes-view", "view.png"]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("--stokes-view needs a polarized mode"), "{stderr}");
 }
 
 /// The seed's polarizing-filter photo, as a closed form: a glass surface
 /// (η 1.5, black below) reflects a white sky towards a camera at Brewster's
 /// angle atan(1.5) = 56.3°. The reflection is ½R⊥ of the sky, all of it
-/// s-polarised (horizontal here): a polarizer in front of the camera passes
-/// all of it when its axis is horizontal and none when vertical.
+/// s-polarised, horizontal in the image: S1 = S0 (the camera measures
+/// Stokes vectors from the image's horizontal), S2 = S3 = 0. A polarizer in
+/// front of the camera passes all of it when its axis is horizontal and
+/// none when vertical.
 #[test]
 fn brewster_reflection_vanishes_behind_a_crossed_polarizer() {
     let eta = 1.5f32;
     let brewster = eta.atan();
-    let cam = glam::Vec3::new(0.0, brewster.cos(), brewster.sin()) * 5.0;
-    let view = (-cam).normalize();
-    let sheet_at = cam + view;
-    // The sheet's tangent frame (Snell's, from its normal): the θ that puts
-    // its axis along world x, i.e. along s.
-    let frame = snell::math::Frame::from_normal(view);
-    let theta_s = frame.t.dot(glam::Vec3::X).atan2(frame.s.dot(glam::Vec3::X)).to_degrees();
-    let scene = |polarizer: Option<f32>| {
-        let sheet = polarizer.map_or(String::new(), |theta| {
-            format!(
-                r#"<shape type="rectangle">
-        <transform name="to_world"><scale value="0.5"/><lookat origin="{}, {}, {}" target="{}, {}, {}" up="0, 1, 0"/></transform>
-        <bsdf type="polarizer"><float name="theta" value="{theta}"/></bsdf>
-    </shape>"#,
-                sheet_at.x, sheet_at.y, sheet_at.z, sheet_at.x + view.x, sheet_at.y + view.y, sheet_at.z + view.z
-            )
-        });
-        format!(
-            r#"<scene version="3.0.0">
-    <integrator type="path"/>
-    <sensor type="perspective">
-        <float name="fov" value="1"/>
-        <transform name="to_world"><lookat origin="{}, {}, {}" target="0, 0, 0" up="0, 1, 0"/></transform>
-        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/><rfilter type="box"/></film>
-    </sensor>
-    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="50"/><rotate x="1" angle="-90"/></transform>
-        <bsdf type="dielectric"><float name="int_ior" value="{eta}"/><float name="ext_ior" value="1"/></bsdf>
-    </shape>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="50"/><rotate x="1" angle="-90"/><translate y="-1"/></transform>
-        <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
-    </shape>
-    {sheet}
-</scene>"#,
-            cam.x, cam.y, cam.z
-        )
-    };
     let render = |text: &str, polarized: bool| {
         let passes = if polarized {
             render_passes_as::<Polarized<Rgb>>(Path::new("brewster.xml"), Some(text), params(&[]), 8, 1024)
         } else {
             render_passes_as::<Rgb>(Path::new("brewster.xml"), Some(text), params(&[]), 8, 1024)
         };
-        mean(&average(&passes))[1]
+        average(&passes)
     };
     let f = snell::bsdf::fresnel::fresnel_dielectric(brewster.cos(), eta);
     let half_rs = 0.5 * f.r_perpendicular as f64;
-    let bare = render(&scene(None), true);
-    let along_s = render(&scene(Some(theta_s)), true);
-    let crossed = render(&scene(Some(theta_s + 90.0)), true);
-    eprintln!("½R⊥ = {half_rs:.5}: bare {bare:.5}, polarizer along s {along_s:.5}, crossed {crossed:.6}");
+    let bare_image = render(&brewster_scene("dielectric", None), true);
+    let bare = mean(&bare_image)[1];
+    let along_s = mean(&render(&brewster_scene("dielectric", Some(0.0)), true))[1];
+    let crossed = mean(&render(&brewster_scene("dielectric", Some(90.0)), true))[1];
+    let stokes = ["S1", "S2", "S3"].map(|name| mean(&bare_image.layer(name).map(|l| snell::film::Image::new(8, 8, l.pixels.clone())).expect("Stokes layer"))[1]);
+    eprintln!("½R⊥ = {half_rs:.5}: bare {bare:.5} (S1 {:.5}, S2 {:.1e}, S3 {:.1e}), polarizer along s {along_s:.5}, crossed {crossed:.6}", stokes[0], stokes[1], stokes[2]);
     // Reflection is sampled with probability F ≈ 0.15: 8 × 1024 spp per pixel keep the noise near 0.3 %.
     assert!((bare - half_rs).abs() < 0.02 * half_rs, "bare {bare} vs {half_rs}");
+    // Fully polarised only at Brewster's angle itself: the 1° view spans ±0.5° about it.
+    assert!((stokes[0] - bare).abs() < 1e-3 * bare, "S1 {} vs S0 {bare}: not horizontally polarised", stokes[0]);
+    assert!(stokes[1].abs() < 1e-4 * bare && stokes[2].abs() < 1e-6, "S2 {} S3 {}", stokes[1], stokes[2]);
     assert!((along_s - half_rs).abs() < 0.02 * half_rs, "along s {along_s} vs {half_rs}");
     assert!(crossed < 1e-3 * half_rs, "crossed polarizer still passes {crossed}");
     // Unpolarised mode: the bare reflection is the same; a sheet halves it at any angle.
-    let bare_rgb = render(&scene(None), false);
-    let crossed_rgb = render(&scene(Some(theta_s + 90.0)), false);
+    let bare_rgb = mean(&render(&brewster_scene("dielectric", None), false))[1];
+    let crossed_rgb = mean(&render(&brewster_scene("dielectric", Some(90.0)), false))[1];
     assert!((bare_rgb - half_rs).abs() < 0.05 * half_rs && (crossed_rgb - 0.5 * half_rs).abs() < 0.05 * half_rs, "{bare_rgb} {crossed_rgb}");
 }
 
@@ -208,13 +183,16 @@ fn conductor_intensity_matches_the_unpolarized_render() {
 /// any analyzer passes half (¼); a half-wave plate at θ mirrors the
 /// polarisation about its axis (0° → 2θ), so an analyzer at 2θ passes ½ and
 /// one crossed to it nothing. The unpolarised modes see clear plates (½).
+/// Angles here turn counter-clockwise seen from the camera, as the
+/// retarder's θ does; the polarizer's θ turns the other way (both as in
+/// Mitsuba 3), so the analyzer at angle φ has θ = −φ.
 #[test]
 fn wave_plates_between_polarizers() {
     let scene = |plate_theta: f32, delta: f32, analyzer: f32| {
         sky_through_sheets(
             &(sheet(-1.0, r#"<bsdf type="polarizer"/>"#)
                 + &sheet(0.0, &format!(r#"<bsdf type="retarder"><float name="theta" value="{plate_theta}"/><float name="delta" value="{delta}"/></bsdf>"#))
-                + &sheet(1.0, &format!(r#"<bsdf type="polarizer"><float name="theta" value="{analyzer}"/></bsdf>"#))),
+                + &sheet(1.0, &format!(r#"<bsdf type="polarizer"><float name="theta" value="{}"/></bsdf>"#, -analyzer))),
         )
     };
     let render = |text: String, polarized: bool| {
@@ -240,5 +218,37 @@ fn wave_plates_between_polarizers() {
         assert!((got - expected).abs() < 1e-4, "plate {plate}°, δ {delta}°, analyzer {analyzer}°: {got} vs {expected}");
         let unpolarized = render(scene(plate, delta, analyzer), false);
         assert!((unpolarized - 0.25).abs() < 1e-5, "{unpolarized}");
+    }
+}
+
+/// The full Stokes vector against Mitsuba 3.9.1: `scalar_spectral_polarized`
+/// with its `stokes` integrator rendered tests/scenes/polarized-glass-metal.xml
+/// (glass and gold spheres, half the view through a polarizer and a
+/// quarter-wave plate turned about the view axis) at 32 768 spp. Snell's
+/// spectral-polarized S0–S3, measured in the camera's frame, must match it
+/// within noise, block by block: this checks the Fresnel matrices, the
+/// sheets' axes (from ∂p/∂u, at oblique incidence as Mitsuba tilts them)
+/// and the camera's Stokes frame together.
+#[test]
+fn stokes_components_match_mitsuba() {
+    let reference = snell::film::output::read_exr(&repo("tests/references/polarized/polarized-glass-metal.exr")).expect("reference image");
+    let passes = render_passes_as::<Polarized<Sampled>>(&repo("tests/scenes/polarized-glass-metal.xml"), None, params(&[]), 16, 64);
+    // The reference's relative standard error (tests/references/polarized/README.md).
+    compare(&passes, &reference, 8, 2.5e-3).assert_unbiased("S0", 0.01);
+    let s0 = mean(&reference);
+    for name in ["S1", "S2", "S3"] {
+        let layer = reference.layer(name).unwrap_or_else(|| panic!("reference has no {name}"));
+        let expected = snell::film::Image::new(reference.width, reference.height, layer.pixels.clone());
+        let rendered = layer_images(&passes, name);
+        // The reference's relative error applies to its Stokes components too.
+        let c = compare(&rendered, &expected, 8, 2.5e-3);
+        c.report(name);
+        // Signed components: compare means against S0's scale rather than by ratio.
+        let (m, e) = (mean(&average(&rendered)), mean(&expected));
+        for ch in 0..3 {
+            assert!((m[ch] - e[ch]).abs() < 0.01 * s0[ch], "{name} channel {ch}: mean {} vs {}", m[ch], e[ch]);
+        }
+        assert!(c.mean_z2 < 2.0, "{name}: mean z² = {:.2}", c.mean_z2);
+        assert!(c.max_z < 6.0, "{name}: block {:?} is {:.1} standard errors off", c.worst_block, c.max_z);
     }
 }

@@ -90,44 +90,6 @@ fn pane_and_plastic_intensity_matches_the_unpolarized_render() {
 fn thin_pane_brewster_reflection_vanishes_behind_a_crossed_polarizer() {
     let eta = 1.5f32;
     let brewster = eta.atan();
-    let cam = glam::Vec3::new(0.0, brewster.cos(), brewster.sin()) * 5.0;
-    let view = (-cam).normalize();
-    let sheet_at = cam + view;
-    // The sheet's tangent frame (from its normal): the θ that puts its axis along world x, i.e. s.
-    let frame = snell::math::Frame::from_normal(view);
-    let theta_s = frame.t.dot(glam::Vec3::X).atan2(frame.s.dot(glam::Vec3::X)).to_degrees();
-    let scene = |polarizer: Option<f32>| {
-        let sheet = polarizer.map_or(String::new(), |theta| {
-            format!(
-                r#"<shape type="rectangle">
-        <transform name="to_world"><scale value="0.5"/><lookat origin="{}, {}, {}" target="{}, {}, {}" up="0, 1, 0"/></transform>
-        <bsdf type="polarizer"><float name="theta" value="{theta}"/></bsdf>
-    </shape>"#,
-                sheet_at.x, sheet_at.y, sheet_at.z, sheet_at.x + view.x, sheet_at.y + view.y, sheet_at.z + view.z
-            )
-        });
-        format!(
-            r#"<scene version="3.0.0">
-    <integrator type="path"/>
-    <sensor type="perspective">
-        <float name="fov" value="1"/>
-        <transform name="to_world"><lookat origin="{}, {}, {}" target="0, 0, 0" up="0, 1, 0"/></transform>
-        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/><rfilter type="box"/></film>
-    </sensor>
-    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="50"/><rotate x="1" angle="-90"/></transform>
-        <bsdf type="thindielectric"><float name="int_ior" value="{eta}"/><float name="ext_ior" value="1"/></bsdf>
-    </shape>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="50"/><rotate x="1" angle="-90"/><translate y="-1"/></transform>
-        <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
-    </shape>
-    {sheet}
-</scene>"#,
-            cam.x, cam.y, cam.z
-        )
-    };
     let render = |text: &str, polarized: bool| {
         let path = Path::new("thin-brewster.xml");
         let passes = if polarized {
@@ -139,16 +101,16 @@ fn thin_pane_brewster_reflection_vanishes_behind_a_crossed_polarizer() {
     };
     let r = 0.5 * snell::bsdf::fresnel::fresnel_dielectric(brewster.cos(), eta).r_perpendicular as f64;
     let slab = 2.0 * r / (1.0 + r);
-    let bare = render(&scene(None), true);
-    let along_s = render(&scene(Some(theta_s)), true);
-    let crossed = render(&scene(Some(theta_s + 90.0)), true);
+    let bare = render(&brewster_scene("thindielectric", None), true);
+    let along_s = render(&brewster_scene("thindielectric", Some(0.0)), true);
+    let crossed = render(&brewster_scene("thindielectric", Some(90.0)), true);
     eprintln!("R' = {slab:.5}: bare {bare:.5}, polarizer along s {along_s:.5}, crossed {crossed:.6}");
     // Reflection is sampled with probability R' ≈ 0.14: 8 × 512 spp × 64 pixels keep the noise near 0.5 %.
     assert!((bare - slab).abs() < 0.03 * slab, "bare {bare} vs {slab}");
     assert!((along_s - slab).abs() < 0.03 * slab, "along s {along_s} vs {slab}");
     assert!(crossed < 1e-3 * slab, "crossed polarizer still passes {crossed}");
-    let bare_rgb = render(&scene(None), false);
-    let crossed_rgb = render(&scene(Some(theta_s + 90.0)), false);
+    let bare_rgb = render(&brewster_scene("thindielectric", None), false);
+    let crossed_rgb = render(&brewster_scene("thindielectric", Some(90.0)), false);
     eprintln!("unpolarised mode: bare {bare_rgb:.5}, crossed {crossed_rgb:.5}");
     assert!((bare_rgb - slab).abs() < 0.03 * slab && (crossed_rgb - 0.5 * slab).abs() < 0.03 * slab, "{bare_rgb} {crossed_rgb}");
 }

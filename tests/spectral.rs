@@ -51,7 +51,7 @@ fn dispersive_glass_furnace_is_white() {
     for c in white.0 {
         assert!((c - 1.0).abs() < 3e-3, "spectral white {white:?}");
     }
-    let expected = Image { width: 64, height: 48, pixels: vec![white; 64 * 48] };
+    let expected = Image::new(64, 48, vec![white; 64 * 48]);
     let passes = render_passes_as::<Sampled>(Path::new("dispersive-furnace.xml"), Some(&text), Default::default(), 16, 16);
     compare(&passes, &expected, 8, 0.0).assert_unbiased("dispersive glass furnace", 0.005);
 }

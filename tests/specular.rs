@@ -37,7 +37,7 @@ fn expected_image(path: &Path, text: &str, n: u32, value: impl Fn(&Ray) -> Rgb) 
             pixels.push(acc / (n * n) as f32);
         }
     }
-    Image { width: w, height: h, pixels }
+    Image::new(w, h, pixels)
 }
 
 /// Cosine of the angle at which `ray` meets the unit sphere at the origin, if it does.
@@ -55,7 +55,7 @@ fn unit_sphere_cos(ray: &Ray) -> Option<f32> {
 
 /// `shapes` in a `constant` environment of radiance 1, path tracer, unlimited depth.
 fn ones(w: u32, h: u32) -> Image {
-    Image { width: w, height: h, pixels: vec![Rgb::WHITE; (w * h) as usize] }
+    Image::new(w, h, vec![Rgb::WHITE; (w * h) as usize])
 }
 
 #[test]

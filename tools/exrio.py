@@ -1,7 +1,8 @@
 """Minimal OpenEXR I/O for the reference images (numpy only).
 
 write_exr() writes a single-part scanline EXR, NO_COMPRESSION, FLOAT (32-bit)
-channels B, G, R (EXR stores channels sorted by name), one scanline per block.
+channels (R, G, B unless named otherwise; EXR stores them sorted by name), one
+scanline per block.
 read_exr() reads back such files (uncompressed, FLOAT or HALF channels).
 """
 import struct
@@ -13,12 +14,13 @@ def _attr(name, typ, data):
     return name.encode() + b"\0" + typ.encode() + b"\0" + struct.pack("<i", len(data)) + data
 
 
-def write_exr(path, img):
+def write_exr(path, img, names=("R", "G", "B")):
+    """img: HxWxC; names: the C channel names (e.g. R, G, B, S1.R, ...)."""
     img = np.asarray(img, dtype=np.float32)
-    if img.ndim != 3 or img.shape[2] != 3:
-        raise ValueError("expected an HxWx3 array")
+    if img.ndim != 3 or img.shape[2] != len(names):
+        raise ValueError("expected an HxWx%d array" % len(names))
     h, w, _ = img.shape
-    chans = [("B", 2), ("G", 1), ("R", 0)]
+    chans = sorted((n, i) for i, n in enumerate(names))
     chlist = b"".join(n.encode() + b"\0" + struct.pack("<iB3xii", 2, 0, 1, 1)
                       for n, _ in chans) + b"\0"
     box = struct.pack("<iiii", 0, 0, w - 1, h - 1)
@@ -34,7 +36,7 @@ def write_exr(path, img):
         _attr("screenWindowWidth", "float", struct.pack("<f", 1.0)),
         b"\0",
     ])
-    line_bytes = w * 3 * 4
+    line_bytes = w * len(chans) * 4
     first = len(header) + 8 * h
     offsets = [first + y * (8 + line_bytes) for y in range(h)]
     with open(path, "wb") as f:
@@ -46,7 +48,7 @@ def write_exr(path, img):
                 f.write(np.ascontiguousarray(img[y, :, c]).astype("<f4").tobytes())
 
 
-def read_exr(path):
+def read_exr(path, names=("R", "G", "B")):
     data = open(path, "rb").read()
     magic, version = struct.unpack_from("<ii", data, 0)
     if magic != 20000630:
@@ -80,4 +82,4 @@ def read_exr(path):
             dt, sz = ("<f4", 4) if ptype == 2 else ("<f2", 2)
             out[n][y - y0] = np.frombuffer(data, dt, w, q).astype(np.float32)
             q += w * sz
-    return np.stack([out["R"], out["G"], out["B"]], axis=-1)
+    return np.stack([out[n] for n in names], axis=-1)

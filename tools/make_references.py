@@ -74,7 +74,11 @@ def render_reference(path, res, spp, pass_spp):
     # Standard error of the per-pixel mean, estimated from the pass spread
     var = np.maximum(acc2 / n_passes - mean * mean, 0) / max(n_passes - 1, 1)
     stderr = np.sqrt(var)
-    return mean.astype(np.float32), stderr, n_passes * pass_spp, time.time() - t0
+    # Channel names: R, G, B, then any the integrator adds (Mitsuba's
+    # `stokes` integrator: S0.R ... S3.B)
+    struct = scene.sensors()[0].film().bitmap().struct_()
+    names = [field.name for field in struct]
+    return mean.astype(np.float32), stderr, n_passes * pass_spp, time.time() - t0, names
 
 
 def main():
@@ -98,11 +102,11 @@ def main():
         path, _, spp_arg = arg.partition("@")
         stem = os.path.splitext(os.path.basename(path))[0]
         scene_spp = int(spp_arg) if spp_arg else SCENE_SPP.get(stem, args.spp)
-        img, stderr, spp, secs = render_reference(path, args.res, scene_spp, args.pass_spp)
+        img, stderr, spp, secs, names = render_reference(path, args.res, scene_spp, args.pass_spp)
         out = os.path.join(args.out, stem + ".exr")
-        write_exr(out, img)
-        m = img.reshape(-1, 3).mean(0)
-        rel = float(stderr.mean() / max(img.mean(), 1e-12))
+        write_exr(out, img, names)
+        m = img[:, :, :3].reshape(-1, 3).mean(0)
+        rel = float(stderr[:, :, :3].mean() / max(img[:, :, :3].mean(), 1e-12))
         print(f"{stem}: {img.shape[1]}x{img.shape[0]}, {spp} spp, {secs:.0f}s, "
               f"mean RGB {m[0]:.5f} {m[1]:.5f} {m[2]:.5f}, "
               f"mean pixel std-error / mean = {rel:.2e} -> {os.path.relpath(out, ROOT)}",

@@ -123,6 +123,17 @@ impl Bsdf {
         }
     }
 
+    /// Whether the BSDF is oriented within the surface (a polarizer's or a
+    /// wave plate's axis), measured from ∂p/∂u as in Mitsuba: its shapes
+    /// then build their shading frames from ∂p/∂u instead of the normal alone.
+    pub fn needs_tangent_frame(&self) -> bool {
+        match self {
+            Bsdf::Polarizer(_) | Bsdf::Retarder(_) => true,
+            Bsdf::TwoSided(t) => t.front.needs_tangent_frame() || t.back.needs_tangent_frame(),
+            _ => false,
+        }
+    }
+
     /// The plugin name, for messages.
     pub fn plugin(&self) -> &'static str {
         match self {

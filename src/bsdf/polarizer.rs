@@ -2,15 +2,16 @@
 //!
 //! | parameter | type | default | meaning |
 //! |---|---|---|---|
-//! | `theta` | float | 0 | angle (degrees) of the transmission axis from the surface's tangent, about its normal |
-//!
-//! The tangent is that of Snell's shading frame, a function of the normal
-//! alone; Mitsuba measures θ from ∂p/∂u instead, so the same θ on a rotated
-//! shape can point elsewhere (relative angles between sheets of one
-//! orientation agree). Following ∂p/∂u is part of finishing the polarized modes.
-//!
+//! | `theta` | float | 0 | angle (degrees) of the transmission axis from the surface's ∂p/∂u, clockwise about its normal |
 //! | `transmittance` | rgb / spectrum / float | 1 | scale on what passes |
 //! | `polarizing` | boolean | true | false: a neutral filter of the same transmittance |
+//!
+//! ∂p/∂u is that of Mitsuba's parametrisation of the shape (a rectangle's
+//! local x axis, a mesh's texture coordinates), so a sheet's axis turns with
+//! its `to_world` as in Mitsuba. θ turns the axis clockwise as seen from the
+//! side the normal points to (counter-clockwise from the back), which is
+//! what Mitsuba 3.9's polarizer does (its `retarder` turns the other way);
+//! either way the axis is a line fixed in the sheet.
 //!
 //! Light passes straight through (a delta transmission); of unpolarised
 //! light half does, polarised along the axis. In the polarized modes the
@@ -51,10 +52,27 @@ impl Polarizer {
         } else {
             // Light travels from the wo side to the wi side: along w = wi.
             // Grazing along the axis, nothing sensible passes.
-            let axis = si.to_world(Vec3::new(self.theta.cos(), self.theta.sin(), 0.0));
-            let m = sheet_to_canonical(linear_polarizer(0.0), si.to_world(wi), axis).unwrap_or(Mat4::ZERO);
+            let f = si.to_world(wi);
+            let m = match transmission_axis(si, f, self.theta) {
+                Some(axis) => sheet_to_canonical(linear_polarizer(0.0), f, axis).unwrap_or(Mat4::ZERO),
+                None => Mat4::ZERO,
+            };
             S::mueller(m, scale)
         };
         Some(BsdfSample { wo, weight, pdf: 1.0, eta: 1.0, lobe: Lobe::DELTA_TRANSMISSION })
     }
+}
+
+/// The transmission axis across light travelling along `f` (world, unit)
+/// through the sheet at `si` whose in-sheet axis is at `theta` clockwise
+/// from ∂p/∂u. At oblique incidence the axis is found as Korger et al.
+/// (2013) do for a tilted polarizer, and Mitsuba 3 with them: the in-sheet
+/// absorbing axis projected across the beam, the transmission axis
+/// perpendicular to it and to the beam. `None` if the beam runs along the
+/// absorbing axis.
+fn transmission_axis(si: &SurfaceInteraction, f: Vec3, theta: f32) -> Option<Vec3> {
+    let (sin, cos) = theta.sin_cos();
+    let absorbing = si.frame.s * sin + si.frame.t * cos;
+    let absorbing = (absorbing - f * absorbing.dot(f)).try_normalize()?;
+    Some(f.cross(absorbing))
 }

@@ -2,7 +2,7 @@
 //!
 //! | parameter | type | default | meaning |
 //! |---|---|---|---|
-//! | `theta` | float | 0 | angle (degrees) of the fast axis from the surface's tangent, about its normal (the tangent as for `polarizer`) |
+//! | `theta` | float | 0 | angle (degrees) of the fast axis from the surface's ∂p/∂u, counter-clockwise about its normal (as Mitsuba's; its polarizer turns the other way) |
 //! | `delta` | float | 90 | retardance in degrees: 90 a quarter-wave plate, 180 a half-wave plate |
 //! | `transmittance` | rgb / spectrum / float | 1 | scale on what passes |
 //!
@@ -20,7 +20,7 @@
 
 use super::{BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
-use crate::spectrum::mueller::{linear_retarder, sheet_to_canonical};
+use crate::spectrum::mueller::{linear_retarder, sheet_to_canonical, stokes_basis};
 use crate::spectrum::Spectrum;
 use crate::texture::Texture;
 use glam::{Mat4, Vec3};
@@ -39,13 +39,28 @@ impl Retarder {
     pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
         let scale: S = self.transmittance.eval_spectrum(si.uv, wl);
         let weight = if S::POLARIZED {
-            // Light travels along w = wi; the plate's axes projected across it.
-            let axis = si.to_world(Vec3::new(self.theta.cos(), self.theta.sin(), 0.0));
-            let m = sheet_to_canonical(linear_retarder(0.0, self.delta), si.to_world(wi), axis).unwrap_or(Mat4::IDENTITY);
+            // Light travels along wi; the plate's retardance falls off as
+            // |cos θ_i| at oblique incidence, as Mitsuba 3 models a tilted plate.
+            let axis = si.to_world(fast_axis(wi, self.theta));
+            let m = sheet_to_canonical(linear_retarder(0.0, self.delta * wi.z.abs()), si.to_world(wi), axis).unwrap_or(Mat4::IDENTITY);
             S::mueller(m, scale)
         } else {
             scale
         };
         Some(BsdfSample { wo: -wi, weight, pdf: 1.0, eta: 1.0, lobe: Lobe::DELTA_TRANSMISSION })
     }
+}
+
+/// The fast axis (local, across the beam) for light travelling along local
+/// `wi`, as Mitsuba 3 places it: its reference is the u tangent (local x)
+/// turned onto the plane across the beam by the angle in space between x and
+/// the beam's canonical Stokes basis (not the angle of x's projection; the
+/// two agree at normal incidence), and θ turns the axis from there about the
+/// beam, counter-clockwise as seen from the normal's side.
+fn fast_axis(wi: Vec3, theta: f32) -> Vec3 {
+    let b = stokes_basis(wi);
+    let phi = Vec3::X.cross(b).dot(wi).signum() * b.x.clamp(-1.0, 1.0).acos();
+    let reference = b * phi.cos() - wi.cross(b) * phi.sin();
+    let side = if wi.z >= 0.0 { 1.0 } else { -1.0 };
+    reference * theta.cos() + wi.cross(reference) * (side * theta.sin())
 }

@@ -1,7 +1,10 @@
-//! Writing developed images: OpenEXR (linear float32 RGB), PNG (8-bit sRGB,
-//! clamped) and PFM (linear float32, bottom row first as the format says).
+//! Writing developed images: OpenEXR (linear float32 RGB, plus named
+//! channels for further layers such as the Stokes components), PNG (8-bit
+//! sRGB, clamped) and PFM (linear float32, bottom row first as the format
+//! says). PNG and PFM hold the RGB image only.
 
-use super::Image;
+use super::{Image, Layer};
+use crate::spectrum::Rgb;
 use crate::texture::bitmap::linear_to_srgb;
 use std::io::Write;
 use std::path::Path;
@@ -32,13 +35,14 @@ pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
     })?;
     let (w, h) = (image.width as usize, image.height as usize);
     match format {
-        Format::Exr => {
+        Format::Exr if image.layers.is_empty() => {
             exr::prelude::write_rgb_file(path, w, h, |x, y| {
                 let p = image.pixels[y * w + x];
                 (p[0], p[1], p[2])
             })
             .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
         }
+        Format::Exr => write_layered_exr(image, path)?,
         Format::Png => {
             let mut buf = Vec::with_capacity(w * h * 3);
             for p in &image.pixels {
@@ -67,8 +71,71 @@ pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Reads a 3-channel EXR (as written by Snell or Mitsuba) back into an image.
+/// R, G, B, then each layer as channels `NAME.R`, `NAME.G`, `NAME.B`; a
+/// render with Stokes layers also repeats R, G, B as `S0.*`, so the file has
+/// the channels Mitsuba's `stokes` integrator writes.
+fn write_layered_exr(image: &Image, path: &Path) -> anyhow::Result<()> {
+    use exr::prelude as x;
+    use exr::prelude::WritableImage;
+    let channel = |name: String, pixels: &[Rgb], c: usize| {
+        x::AnyChannel::new(name.as_str(), x::FlatSamples::F32(pixels.iter().map(|p| p[c]).collect()))
+    };
+    let mut layers: Vec<(String, &[Rgb])> = vec![(String::new(), &image.pixels)];
+    if image.layer("S1").is_some() {
+        layers.push(("S0.".to_string(), &image.pixels));
+    }
+    layers.extend(image.layers.iter().map(|l| (format!("{}.", l.name), l.pixels.as_slice())));
+    let mut channels = x::SmallVec::new();
+    for (prefix, pixels) in layers {
+        for (c, rgb) in ["R", "G", "B"].into_iter().enumerate() {
+            channels.push(channel(format!("{prefix}{rgb}"), pixels, c));
+        }
+    }
+    let layer = x::Layer::new(
+        (image.width as usize, image.height as usize),
+        x::LayerAttributes::default(),
+        x::Encoding::FAST_LOSSLESS,
+        x::AnyChannels::sort(channels),
+    );
+    x::Image::from_layer(layer)
+        .write()
+        .to_file(path)
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+}
+
+/// Reads an EXR (as written by Snell or Mitsuba): R, G, B as the image, and
+/// every other complete `NAME.R`/`.G`/`.B` triple (S0–S3 of a polarized
+/// render) as a layer.
 pub fn read_exr(path: &Path) -> anyhow::Result<Image> {
-    let (w, h, pixels) = crate::texture::bitmap::read_image(path, true).map_err(|e| anyhow::anyhow!(e))?;
-    Ok(Image { width: w as u32, height: h as u32, pixels })
+    use exr::prelude as x;
+    use exr::prelude::ReadChannels;
+    use exr::prelude::ReadLayers;
+    let file = x::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| anyhow::anyhow!("cannot read EXR image {}: {e}", path.display()))?;
+    let size = file.layer_data.size;
+    let channels = &file.layer_data.channel_data.list;
+    let find = |name: &str| -> Option<Vec<f32>> {
+        channels.iter().find(|c| c.name.to_string() == name).map(|c| c.sample_data.values_as_f32().collect())
+    };
+    let triple = |prefix: &str| -> Option<Vec<Rgb>> {
+        let (r, g, b) = (find(&format!("{prefix}R"))?, find(&format!("{prefix}G"))?, find(&format!("{prefix}B"))?);
+        let pixels: Vec<Rgb> = r.iter().zip(&g).zip(&b).map(|((&r, &g), &b)| Rgb::new(r, g, b)).collect();
+        (pixels.len() == size.0 * size.1).then_some(pixels)
+    };
+    let pixels = triple("").ok_or_else(|| anyhow::anyhow!("EXR image {} has no R, G, B channels", path.display()))?;
+    let mut image = Image::new(size.0 as u32, size.1 as u32, pixels);
+    let mut prefixes: Vec<String> = channels.iter().filter_map(|c| c.name.to_string().strip_suffix(".R").map(str::to_string)).collect();
+    prefixes.sort();
+    for name in prefixes {
+        if let Some(pixels) = triple(&format!("{name}.")) {
+            image.layers.push(Layer { name, pixels });
+        }
+    }
+    Ok(image)
 }

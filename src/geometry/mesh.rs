@@ -118,6 +118,21 @@ impl Mesh {
         self.face_normals[i]
     }
 
+    /// ∂p/∂u of triangle `i` from its texture coordinates; `None` without
+    /// them or if they are degenerate.
+    pub fn dp_du(&self, i: usize) -> Option<Vec3> {
+        let uvs = self.uvs.as_ref()?;
+        let [ia, ib, ic] = self.triangles[i];
+        let [a, b, c] = self.vertices(i);
+        let (duv1, duv2) = (uvs[ib as usize] - uvs[ia as usize], uvs[ic as usize] - uvs[ia as usize]);
+        let det = duv1.x * duv2.y - duv1.y * duv2.x;
+        if !(det.abs() > 1e-12) {
+            return None;
+        }
+        // p(u, v) is affine on the triangle: solve for ∂p/∂u from its edges.
+        Some(((b - a) * duv2.y - (c - a) * duv1.y) / det)
+    }
+
     /// Shading normal and uv at barycentrics (b1, b2) of triangle `i`.
     #[inline]
     pub fn shading(&self, i: usize, b1: f32, b2: f32, face_n: Vec3) -> (Vec3, Vec2) {

@@ -20,6 +20,10 @@ pub struct Shape {
     pub geometry: ShapeGeometry,
     pub bsdf: u32,
     pub emitter: Option<u32>,
+    /// Build shading frames with their tangent along ∂p/∂u (for BSDFs
+    /// oriented within the surface); otherwise the tangent is a function of
+    /// the normal alone, which is cheaper and all isotropic BSDFs need.
+    pub tangent_frame: bool,
 }
 
 impl Shape {
@@ -68,8 +72,28 @@ impl Shape {
                 (p, d.normal, d.normal, d.uv_at(p))
             }
         };
-        let frame = Frame::from_normal(sh_n);
+        let frame = match self.tangent_frame.then(|| self.dp_du(prim, p)).flatten() {
+            Some(dp_du) => Frame::from_normal_and_tangent(sh_n, dp_du),
+            None => Frame::from_normal(sh_n),
+        };
         SurfaceInteraction { p, t, n, frame, uv, shape: shape_index, wi: frame.to_local(-ray_d) }
+    }
+
+    /// ∂p/∂u at `p` on primitive `prim`, with Mitsuba's parametrisations:
+    /// a mesh's texture coordinates (none: no preferred direction), the
+    /// sphere's longitude φ about its local z, the disk's radius.
+    fn dp_du(&self, prim: u32, p: Vec3) -> Option<Vec3> {
+        match &self.geometry {
+            ShapeGeometry::Mesh(m) => m.dp_du(prim as usize),
+            ShapeGeometry::Sphere(s) => {
+                let l = s.to_object.point(p);
+                Some(s.to_object.inverse_vector(Vec3::new(-l.y, l.x, 0.0)))
+            }
+            ShapeGeometry::Disk(d) => {
+                let l = d.to_world.inverse_point(p);
+                Some(d.to_world.vector(Vec3::new(l.x, l.y, 0.0)))
+            }
+        }
     }
 
     /// A point uniformly distributed over the surface (by area).

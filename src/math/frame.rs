@@ -23,6 +23,16 @@ impl Frame {
         Frame { s, t, n }
     }
 
+    /// The frame about `n` whose tangent s is `tangent` made perpendicular
+    /// to n (the normal alone if that leaves nothing).
+    pub fn from_normal_and_tangent(n: Vec3, tangent: Vec3) -> Frame {
+        let s = (tangent - n * n.dot(tangent)).normalize_or_zero();
+        if s == Vec3::ZERO || !s.is_finite() {
+            return Frame::from_normal(n);
+        }
+        Frame { s, t: n.cross(s), n }
+    }
+
     #[inline]
     pub fn to_local(&self, v: Vec3) -> Vec3 {
         Vec3::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))

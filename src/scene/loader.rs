@@ -38,7 +38,7 @@ pub const SENSORS: [&str; 2] = ["perspective", "orthographic"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 3] = ["box", "tent", "gaussian"];
 pub const SAMPLERS: [&str; 1] = ["independent"];
-pub const INTEGRATORS: [&str; 3] = ["direct", "path", "ptracer"];
+pub const INTEGRATORS: [&str; 4] = ["direct", "path", "ptracer", "stokes"];
 
 /// What the command line can override.
 #[derive(Clone, Debug, Default)]
@@ -137,6 +137,7 @@ impl Loader {
         let mut sensor: Option<(Camera, FilmSpec, SamplerSpec)> = None;
         let mut integrator: Option<Integrator> = None;
         let mut integrator_loc: Option<super::Location> = None;
+        let mut stokes_requested = false;
         for child in &root.children {
             let node = match &child.target {
                 ChildTarget::Inline(n) => n.clone(),
@@ -163,7 +164,9 @@ impl Loader {
                     if integrator.is_some() {
                         return Err(SceneError::at(&node.loc, "the scene has more than one <integrator>"));
                     }
-                    integrator = Some(self.integrator(&node)?);
+                    let (inner, stokes) = self.integrator(&node)?;
+                    integrator = Some(inner);
+                    stokes_requested = stokes;
                     integrator_loc = Some(node.loc.clone());
                 }
                 Kind::Film | Kind::Sampler | Kind::Rfilter => {
@@ -204,6 +207,7 @@ impl Loader {
             film,
             sampler,
             integrator,
+            stokes_requested,
             environment: self.environment,
         })
     }
@@ -258,7 +262,8 @@ impl Loader {
             None => None,
         };
         props.finish()?;
-        let shape = Shape { geometry, bsdf, emitter };
+        let tangent_frame = self.bsdfs[bsdf as usize].needs_tangent_frame();
+        let shape = Shape { geometry, bsdf, emitter, tangent_frame };
         if shape.area() <= 0.0 || !shape.area().is_finite() {
             return Err(SceneError::at(&node.loc, format!("this {} has zero or non-finite surface area", node.plugin)));
         }
@@ -637,8 +642,26 @@ impl Loader {
         Ok(SamplerSpec { sample_count, seed })
     }
 
-    fn integrator(&self, node: &Arc<Node>) -> Result<Integrator> {
+    /// The integrator, and whether it asked for Stokes output (Mitsuba's
+    /// `stokes`, which wraps the integrator that does the work).
+    fn integrator(&self, node: &Arc<Node>) -> Result<(Integrator, bool)> {
         let props = Props::new(node);
+        if node.plugin == "stokes" {
+            let nested = props.children_of(Kind::Integrator);
+            let inner = match nested.as_slice() {
+                [child] => match &child.target {
+                    ChildTarget::Inline(n) if n.plugin != "stokes" => self.integrator(n)?.0,
+                    ChildTarget::Inline(n) => return Err(SceneError::at(&n.loc, "a stokes integrator cannot wrap another stokes integrator")),
+                    ChildTarget::Ref(_) => return Err(SceneError::at(&child.loc, "the stokes integrator needs its integrator inline, not by <ref>")),
+                },
+                _ => {
+                    return Err(SceneError::at(&node.loc, "the stokes integrator wraps exactly one nested <integrator> that renders the image")
+                        .with_choices(&INTEGRATORS[..3]))
+                }
+            };
+            props.finish()?;
+            return Ok((inner, true));
+        }
         let integrator = match node.plugin.as_str() {
             "direct" => {
                 let shading = props.int_checked("shading_samples", 1, |v| (0..=1024).contains(&v), "between 0 and 1024")?;
@@ -673,6 +696,6 @@ impl Loader {
             _ => return Err(unknown_plugin(node, &INTEGRATORS)),
         };
         props.finish()?;
-        Ok(integrator)
+        Ok((integrator, false))
     }
 }

@@ -68,6 +68,10 @@ pub struct Scene {
     pub film: FilmSpec,
     pub sampler: SamplerSpec,
     pub integrator: Integrator,
+    /// The scene's integrator is Mitsuba's `stokes`: the polarized modes
+    /// write S0–S3 (they do whatever the integrator), the others warn that
+    /// they cannot.
+    pub stokes_requested: bool,
     /// The environment emitter, if any (seen by rays that leave the scene).
     pub environment: Option<u32>,
 }

@@ -11,7 +11,7 @@ pub use orthographic::Orthographic;
 pub use perspective::{CameraConnection, Perspective};
 
 use crate::geometry::Ray;
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub enum Camera {
@@ -26,5 +26,15 @@ impl Camera {
             Camera::Perspective(c) => c.generate_ray(film),
             Camera::Orthographic(c) => c.generate_ray(film),
         }
+    }
+
+    /// The camera's up direction in the world (+y of camera space), from
+    /// which polarized renders measure Stokes vectors, as Mitsuba does.
+    pub fn up(&self) -> Vec3 {
+        let to_world = match self {
+            Camera::Perspective(c) => &c.to_world,
+            Camera::Orthographic(c) => &c.to_world,
+        };
+        to_world.vector(Vec3::Y).normalize_or_zero()
     }
 }

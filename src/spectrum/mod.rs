@@ -105,6 +105,15 @@ pub trait Spectrum:
     fn mueller(m: glam::Mat4, scale: Self) -> Self {
         scale * m.x_axis.x
     }
+    /// The Stokes vector (S0, S1, S2, S3) per channel of the light this
+    /// estimate describes, in the canonical Stokes frame of its direction
+    /// of travel (`mueller::stokes_basis`); unpolarised light for
+    /// unpolarised types.
+    #[inline]
+    fn stokes(&self) -> [Self::Channels; 4] {
+        let zero = Self::Channels::zero();
+        [self.channels(), zero, zero, zero]
+    }
     /// Whether this type carries polarisation.
     const POLARIZED: bool = false;
 }

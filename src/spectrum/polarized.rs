@@ -46,10 +46,6 @@ impl<U: Spectrum> Polarized<U> {
         Polarized(out)
     }
 
-    /// The Stokes vector of the light this matrix maps unpolarised unit light to.
-    pub fn stokes(&self) -> [U; 4] {
-        [self.0[0][0], self.0[1][0], self.0[2][0], self.0[3][0]]
-    }
 }
 
 impl<U: Spectrum> Add for Polarized<U> {
@@ -193,6 +189,11 @@ impl<U: Spectrum> Spectrum for Polarized<U> {
     }
     fn is_zero(&self) -> bool {
         self.0.iter().all(|row| row.iter().all(|v| v.is_zero()))
+    }
+    /// The first column: what the path makes of the unpolarised light
+    /// emitters send (integrators multiply the emission's depolarizer last).
+    fn stokes(&self) -> [U; 4] {
+        [self.0[0][0], self.0[1][0], self.0[2][0], self.0[3][0]]
     }
     fn depolarize(self) -> Self {
         Self::depolarizer(self.0[0][0])

@@ -54,6 +54,7 @@ pub fn mean(img: &Image) -> [f64; 3] {
     m.map(|v| v / img.pixels.len() as f64)
 }
 
+/// The pixel-wise mean of the images, and of their layers (Stokes S1–S3).
 pub fn average(images: &[Image]) -> Image {
     let n = images.len() as f32;
     let mut out = images[0].clone();
@@ -64,7 +65,67 @@ pub fn average(images: &[Image]) -> Image {
         }
         *p = s / n;
     }
+    for (k, layer) in out.layers.iter_mut().enumerate() {
+        for (i, p) in layer.pixels.iter_mut().enumerate() {
+            let mut s = Rgb::BLACK;
+            for img in images {
+                s += img.layers[k].pixels[i];
+            }
+            *p = s / n;
+        }
+    }
     out
+}
+
+/// Layer `name` (e.g. "S1") of each image, as images of their own.
+pub fn layer_images(images: &[Image], name: &str) -> Vec<Image> {
+    images
+        .iter()
+        .map(|img| Image::new(img.width, img.height, img.layer(name).unwrap_or_else(|| panic!("no layer {name}")).pixels.clone()))
+        .collect()
+}
+
+/// The seed's polarizing-filter photo as a test scene: a flat surface of
+/// `surface_bsdf` (η 1.5; black below) reflects a white sky into a narrow
+/// camera at Brewster's angle atan 1.5 = 56.3°, optionally through a
+/// polarizer sheet at `polarizer_theta` degrees. The sheet faces the camera
+/// with its ∂p/∂u horizontal (world x, the s direction), so θ = 0 passes
+/// s-polarised light and θ = 90 blocks it.
+pub fn brewster_scene(surface_bsdf: &str, polarizer_theta: Option<f32>) -> String {
+    let brewster = 1.5f32.atan();
+    let cam = glam::Vec3::new(0.0, brewster.cos(), brewster.sin()) * 5.0;
+    let view = (-cam).normalize();
+    let (at, to) = (cam + view, cam + 2.0 * view);
+    let sheet = polarizer_theta.map_or(String::new(), |theta| {
+        format!(
+            r#"<shape type="rectangle">
+        <transform name="to_world"><scale value="0.5"/><lookat origin="{}, {}, {}" target="{}, {}, {}" up="0, 1, 0"/></transform>
+        <bsdf type="polarizer"><float name="theta" value="{theta}"/></bsdf>
+    </shape>"#,
+            at.x, at.y, at.z, to.x, to.y, to.z
+        )
+    });
+    format!(
+        r#"<scene version="3.0.0">
+    <integrator type="path"/>
+    <sensor type="perspective">
+        <float name="fov" value="1"/>
+        <transform name="to_world"><lookat origin="{}, {}, {}" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/><rfilter type="box"/></film>
+    </sensor>
+    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="50"/><rotate x="1" angle="-90"/></transform>
+        <bsdf type="{surface_bsdf}"><float name="int_ior" value="1.5"/><float name="ext_ior" value="1"/></bsdf>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="50"/><rotate x="1" angle="-90"/><translate y="-1"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+    </shape>
+    {sheet}
+</scene>"#,
+        cam.x, cam.y, cam.z
+    )
 }
 
 fn block_means(img: &Image, block: u32, x: u32, y: u32) -> [f64; 3] {
