@@ -78,7 +78,13 @@ impl TileBuffer {
     /// Adds sample `value` taken at continuous film position `pos` (pixels).
     #[inline]
     pub fn splat(&mut self, filter: &Filter, pos: (f32, f32), value: Rgb) {
-        let Some(fp) = self.footprint(filter, pos) else { return };
+        if let Some(fp) = self.footprint(filter, pos) {
+            self.splat_footprint(&fp, value);
+        }
+    }
+
+    #[inline]
+    fn splat_footprint(&mut self, fp: &Footprint, value: Rgb) {
         let [r0, g0, b0] = value.0;
         let v = glam::Vec4::new(r0, g0, b0, 1.0);
         for j in 0..fp.ny {
@@ -98,8 +104,8 @@ impl TileBuffer {
     /// filter weights applied to the Stokes components `s123` (a tile made
     /// [`TileBuffer::with_stokes`]).
     pub fn splat_stokes(&mut self, filter: &Filter, pos: (f32, f32), value: Rgb, s123: [Rgb; 3]) {
-        self.splat(filter, pos, value);
         let Some(fp) = self.footprint(filter, pos) else { return };
+        self.splat_footprint(&fp, value);
         if self.stokes.is_empty() {
             return;
         }

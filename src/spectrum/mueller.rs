@@ -33,6 +33,11 @@ pub fn depolarizer(v: f32) -> Mat4 {
 /// by 2θ.
 pub fn rotator(theta: f32) -> Mat4 {
     let (s, c) = (2.0 * theta).sin_cos();
+    rotator_from_double_angle(s, c)
+}
+
+/// [`rotator`] given sin 2θ and cos 2θ.
+fn rotator_from_double_angle(s: f32, c: f32) -> Mat4 {
     Mat4::from_cols(
         Vec4::new(1.0, 0.0, 0.0, 0.0),
         Vec4::new(0.0, c, -s, 0.0),
@@ -168,8 +173,15 @@ pub fn stokes_basis(w: Vec3) -> Vec3 {
 /// The rotator taking Stokes vectors of light along `forward` from frame
 /// `basis_current` to frame `basis_target` (both ⟂ forward).
 pub fn rotate_stokes_basis(forward: Vec3, basis_current: Vec3, basis_target: Vec3) -> Mat4 {
-    let theta = basis_current.cross(basis_target).dot(forward).atan2(basis_current.dot(basis_target));
-    rotator(theta)
+    // The turn θ has sin θ ∝ (current × target)·forward and cos θ ∝
+    // current·target; the rotator needs only cos 2θ and sin 2θ, which follow
+    // from those without an atan2 and a sin_cos (this runs at every vertex).
+    let (s, c) = (basis_current.cross(basis_target).dot(forward), basis_current.dot(basis_target));
+    let r2 = s * s + c * c;
+    if !(r2 > 0.0) {
+        return Mat4::IDENTITY;
+    }
+    rotator_from_double_angle((2.0 * s * c) / r2, (c * c - s * s) / r2)
 }
 
 /// Re-expresses Mueller matrix `m` (incident light along `in_forward` in
