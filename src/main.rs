@@ -165,7 +165,7 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
     if polarized {
         if let Some(b) = scene.bsdfs.iter().find(|b| !b.has_mueller_model()) {
             anyhow::bail!(
-                "{}: the polarized modes support diffuse, dielectric, conductor, polarizer and retarder BSDFs so far; this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
+                "{}: the polarized modes support diffuse, dielectric, thindielectric, conductor, plastic, polarizer and retarder BSDFs (and twosided of them); this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
                 args.scene.display(),
                 b.plugin()
             );
@@ -200,7 +200,7 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
         std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n").with_context(|| format!("cannot write {}", path.display()))?;
     }
     if !args.quiet {
-        let names: Vec<String> = outputs.iter().map(|o| o.display().to_string()).collect();
+        let names: Vec<String> = outputs.iter().chain(&args.stokes_view).map(|o| o.display().to_string()).collect();
         eprintln!(
             "rendered {}×{} at {} spp in {:.2} s ({:.2} M samples/s, {} threads; loading {:.2} s) → {}",
             stats.width,
