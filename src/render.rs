@@ -123,20 +123,17 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
                             let ray = scene.camera.generate_ray(pos * inv_size);
                             let l: S = scene.integrator.li(scene, ray, &mut sampler, &mut wl);
                             let mut rgb = l.to_rgb(&wl);
-                            if S::POLARIZED {
-                                let mut s123 = camera_stokes(&l, ray.d, up, &wl);
-                                if !rgb.is_finite() || !s123.iter().all(Rgb::is_finite) {
-                                    bad += 1;
-                                    (rgb, s123) = (Rgb::BLACK, [Rgb::BLACK; 3]);
-                                }
-                                buf.splat_stokes(&scene.film.filter, (pos.x, pos.y), rgb, s123);
-                                continue;
-                            }
-                            if !rgb.is_finite() {
+                            // S1–S3 only in the polarized modes (a constant: no cost otherwise).
+                            let mut s123 = if S::POLARIZED { camera_stokes(&l, ray.d, up, &wl) } else { [Rgb::BLACK; 3] };
+                            if !rgb.is_finite() || !s123.iter().all(Rgb::is_finite) {
                                 bad += 1;
-                                rgb = Rgb::BLACK;
+                                (rgb, s123) = (Rgb::BLACK, [Rgb::BLACK; 3]);
                             }
-                            buf.splat(&scene.film.filter, (pos.x, pos.y), rgb);
+                            if S::POLARIZED {
+                                buf.splat_stokes(&scene.film.filter, (pos.x, pos.y), rgb, s123);
+                            } else {
+                                buf.splat(&scene.film.filter, (pos.x, pos.y), rgb);
+                            }
                         }
                     }
                 }

@@ -264,3 +264,24 @@ fn same_seed_is_bit_identical_across_thread_counts() {
     assert_success(&snell(&["render", s(&scene), "-o", s(&other), "--threads", "2", "--seed", "43", "-q"], &dir));
     assert!(bits(&a) != bits(&read_exr(&other)), "the seed has no effect");
 }
+
+/// A polarized render writes S0–S3 as EXR channels (read back as layers;
+/// S0 repeats the RGB image) and the AoLP/DoLP view as a PNG.
+#[test]
+fn polarized_render_writes_stokes_channels_and_view() {
+    let (dir, _) = setup("stokes");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/polarized-glass-metal.xml");
+    let (exr, view) = (dir.join("out.exr"), dir.join("view.png"));
+    let out = snell(&["render", s(&scene), "-D", "res=16", "--spp", "4", "--mode", "rgb-polarized", "-o", s(&exr), "--stokes-view", s(&view)], &dir);
+    assert_success(&out);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("view.png"), "the summary names the view");
+    let img = read_exr(&exr);
+    let names: Vec<&str> = img.layers.iter().map(|l| l.name.as_str()).collect();
+    assert_eq!(names, ["S0", "S1", "S2", "S3"]);
+    assert!(img.layers[0].pixels.iter().zip(&img.pixels).all(|(a, b)| a == b), "S0 is not the RGB image");
+    // Half the view is seen through a polarizer: strongly polarized light there.
+    let s1_max = img.layers[1].pixels.iter().map(|p| p[1].abs()).fold(0.0f32, f32::max);
+    assert!(s1_max > 0.1, "S1 is (nearly) zero everywhere: {s1_max}");
+    let png = image::open(&view).unwrap_or_else(|e| panic!("{}: {e}", view.display()));
+    assert_eq!((png.width(), png.height()), (16, 16));
+}

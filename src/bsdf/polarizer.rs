@@ -53,10 +53,7 @@ impl Polarizer {
             // Light travels from the wo side to the wi side: along w = wi.
             // Grazing along the axis, nothing sensible passes.
             let f = si.to_world(wi);
-            let m = match transmission_axis(si, f, self.theta) {
-                Some(axis) => sheet_to_canonical(linear_polarizer(0.0), f, axis).unwrap_or(Mat4::ZERO),
-                None => Mat4::ZERO,
-            };
+            let m = transmission_axis(si, f, self.theta).and_then(|axis| sheet_to_canonical(linear_polarizer(0.0), f, axis)).unwrap_or(Mat4::ZERO);
             S::mueller(m, scale)
         };
         Some(BsdfSample { wo, weight, pdf: 1.0, eta: 1.0, lobe: Lobe::DELTA_TRANSMISSION })
