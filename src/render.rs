@@ -120,7 +120,7 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
                         for _ in 0..spp {
                             let mut wl = S::sample_wavelengths(sampler.next_1d());
                             let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                            let ray = scene.camera.generate_ray(pos * inv_size);
+                            let ray = scene.camera.sample_ray(pos * inv_size, &mut sampler);
                             let l: S = scene.integrator.li(scene, ray, &mut sampler, &mut wl);
                             let mut rgb = l.to_rgb(&wl);
                             // S1–S3 only in the polarized modes (a constant: no cost otherwise).

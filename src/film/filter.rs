@@ -5,14 +5,29 @@
 //! | `box` | — | radius ½: each sample lands in its own pixel |
 //! | `tent` | `radius` (1) | w(x) = max(0, 1 − \|x\|/radius) |
 //! | `gaussian` | `stddev` (0.5) | w(x) = max(0, e^(−x²/2σ²) − e^(−r²/2σ²)), radius r = 4σ |
+//! | `mitchell` | `B` (⅓), `C` (⅓) | Mitchell–Netravali cubic, radius 2 |
+//! | `catmullrom` | — | the Mitchell–Netravali cubic with B = 0, C = ½, radius 2 |
+//! | `lanczos` | `lobes` (3, at most 4) | sinc(x)·sinc(x/lobes) for \|x\| ≤ lobes, radius = lobes |
 //!
-//! Filters are separable: w(x, y) = w(x)·w(y).
+//! Filters are separable: w(x, y) = w(x)·w(y). Mitchell (for C > 0),
+//! Catmull–Rom and Lanczos have negative lobes: a pixel is still Σ w·L / Σ w
+//! over its samples (as in Mitsuba), and the film leaves a pixel black where
+//! that sum of weights is zero or the quotient is not finite.
+//!
+//! ```xml
+//! <film type="hdrfilm">
+//!     <rfilter type="lanczos"><integer name="lobes" value="2"/></rfilter>
+//! </film>
+//! ```
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FilterKind {
     Box,
     Tent { radius: f32 },
     Gaussian { stddev: f32, radius: f32 },
+    /// Mitchell–Netravali (Catmull–Rom: B = 0, C = ½).
+    Mitchell { b: f32, c: f32 },
+    Lanczos { lobes: u32 },
 }
 
 /// A filter with a lookup table of its values, so splatting a sample costs
@@ -36,6 +51,8 @@ impl FilterKind {
             FilterKind::Box => 0.5,
             FilterKind::Tent { radius } => *radius,
             FilterKind::Gaussian { radius, .. } => *radius,
+            FilterKind::Mitchell { .. } => 2.0,
+            FilterKind::Lanczos { lobes } => *lobes as f32,
         }
     }
 
@@ -50,6 +67,30 @@ impl FilterKind {
                 let alpha = -1.0 / (2.0 * stddev * stddev);
                 ((alpha * x * x).exp() - (alpha * radius * radius).exp()).max(0.0)
             }
+            FilterKind::Mitchell { b, c } => {
+                let x = x.abs();
+                let (x2, x3) = (x * x, x * x * x);
+                let v = if x < 1.0 {
+                    (12.0 - 9.0 * b - 6.0 * c) * x3 + (-18.0 + 12.0 * b + 6.0 * c) * x2 + (6.0 - 2.0 * b)
+                } else if x < 2.0 {
+                    (-b - 6.0 * c) * x3 + (6.0 * b + 30.0 * c) * x2 + (-12.0 * b - 48.0 * c) * x + (8.0 * b + 24.0 * c)
+                } else {
+                    0.0
+                };
+                v / 6.0
+            }
+            FilterKind::Lanczos { lobes } => {
+                let (x, r) = (x.abs(), lobes as f32);
+                if x < f32::EPSILON {
+                    1.0
+                } else if x > r {
+                    0.0
+                } else {
+                    let a = crate::math::PI * x;
+                    let b = a / r;
+                    (a.sin() * b.sin()) / (a * b)
+                }
+            }
         }
     }
 }
@@ -60,6 +101,10 @@ impl Filter {
         let value = |i: usize| kind.eval(radius * i as f32 / (LUT - 1) as f32);
         let segments = (0..LUT - 1).map(|i| [value(i), value(i + 1)]).collect();
         Filter { kind, radius, scale: (LUT - 1) as f32 / radius, segments }
+    }
+
+    pub fn catmull_rom() -> Filter {
+        Filter::new(FilterKind::Mitchell { b: 0.0, c: 0.5 })
     }
 
     pub fn gaussian(stddev: f32) -> Filter {
@@ -98,6 +143,58 @@ mod tests {
                 assert!((f.eval(x) - f.kind.eval(x)).abs() < 2e-4, "{:?} at {x}", f.kind);
             }
         }
+    }
+
+    /// ∫ w(x) dx by the midpoint rule over [−radius, radius].
+    fn integral(f: impl Fn(f32) -> f32, radius: f32) -> f64 {
+        let n = 200_000;
+        let h = 2.0 * radius as f64 / n as f64;
+        (0..n).map(|i| f((-radius as f64 + (i as f64 + 0.5) * h) as f32) as f64 * h).sum()
+    }
+
+    #[test]
+    fn cubic_and_lanczos_filters_match_their_closed_forms() {
+        // Mitchell–Netravali cubics integrate to 1 for every B, C (they
+        // reproduce constants); w(0) = (6 − 2B)/6, w(1) = B/6, w(2) = 0.
+        for (b, c) in [(1.0 / 3.0, 1.0 / 3.0), (0.0, 0.5), (1.0, 0.0), (0.2, 0.7)] {
+            let k = FilterKind::Mitchell { b, c };
+            assert!((integral(|x| k.eval(x), 2.0) - 1.0).abs() < 1e-5, "B {b} C {c}");
+            assert!((k.eval(0.0) - (6.0 - 2.0 * b) / 6.0).abs() < 1e-6);
+            assert!((k.eval(1.0) - b / 6.0).abs() < 1e-6 && (k.eval(-1.0) - b / 6.0).abs() < 1e-6);
+            assert!(k.eval(2.0).abs() < 1e-6 && k.eval(2.5) == 0.0);
+            // The table agrees with the exact filter.
+            let f = Filter::new(k);
+            for i in 0..1000 {
+                let x = -2.5 + 5.0 * i as f32 / 999.0;
+                assert!((f.eval(x) - k.eval(x)).abs() < 2e-4, "{k:?} at {x}");
+            }
+        }
+        // Catmull–Rom interpolates: 1 at 0, 0 at the other integers; its lobe
+        // between 1 and 2 is negative: w(1.5) = −1/16.
+        let cr = Filter::catmull_rom().kind;
+        assert!((cr.eval(1.5) + 0.0625).abs() < 1e-6, "{}", cr.eval(1.5));
+        // Lanczos: w(0) = 1, zero at every non-zero integer, negative on (1, 2),
+        // and the sinc product at x = ½.
+        for lobes in 1..=4u32 {
+            let k = FilterKind::Lanczos { lobes };
+            assert_eq!(k.eval(0.0), 1.0);
+            for n in 1..=lobes {
+                assert!(k.eval(n as f32).abs() < 1e-6, "lobes {lobes} at {n}");
+            }
+            let a = lobes as f32;
+            let x = 0.5f32;
+            let expect = (std::f32::consts::PI * x).sin() * (std::f32::consts::PI * x / a).sin()
+                / (std::f32::consts::PI * x * std::f32::consts::PI * x / a);
+            assert!((k.eval(x) - expect).abs() < 1e-6);
+            assert_eq!(k.eval(a + 0.01), 0.0);
+            let f = Filter::new(k);
+            assert_eq!(f.radius(), a);
+            for i in 0..1000 {
+                let x = -(a + 0.5) + (2.0 * a + 1.0) * i as f32 / 999.0;
+                assert!((f.eval(x) - k.eval(x)).abs() < 5e-4, "{k:?} at {x}");
+            }
+        }
+        assert!(FilterKind::Lanczos { lobes: 3 }.eval(1.5) < 0.0);
     }
 
     #[test]

@@ -208,10 +208,12 @@ impl Film {
     }
 
     pub fn develop(&self) -> Image {
-        // Σ w·L / Σ w, with black where no sample landed.
+        // Σ w·L / Σ w, with black where no sample landed. Filters with
+        // negative lobes (Mitchell, Catmull–Rom, Lanczos) can make Σ w ≤ 0
+        // in a sparsely sampled pixel: black there too, never Inf/NaN.
         let normalize = |sum: &[f64], weight: f64| {
             let v = Rgb::new((sum[0] / weight) as f32, (sum[1] / weight) as f32, (sum[2] / weight) as f32);
-            if weight > 0.0 && v.is_finite() { v } else { Rgb::BLACK }
+            if weight > 1e-9 && v.is_finite() { v } else { Rgb::BLACK }
         };
         let pixels = self.sums.iter().map(|s| normalize(&s[..3], s[3])).collect();
         let mut image = Image::new(self.width, self.height, pixels);

@@ -10,6 +10,17 @@ use std::sync::Arc;
 pub struct SourceFile {
     pub path: PathBuf,
     pub text: String,
+    /// The folders where relative file names in this file are looked up
+    /// (shared by a scene file and the files it includes).
+    pub search: Arc<super::search::SearchPaths>,
+}
+
+impl SourceFile {
+    /// A file of its own scene: names resolve against its folder.
+    pub fn new(path: PathBuf, text: String) -> SourceFile {
+        let search = Arc::new(super::search::SearchPaths::for_scene(&path));
+        SourceFile { path, text, search }
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -100,7 +111,7 @@ mod tests {
 
     #[test]
     fn display_quotes_the_line_with_a_caret() {
-        let file = Arc::new(SourceFile { path: "a.xml".into(), text: "<scene>\n  <bsdf type=\"x\"/>\n".into() });
+        let file = Arc::new(SourceFile::new("a.xml".into(), "<scene>\n  <bsdf type=\"x\"/>\n".into()));
         let loc = Location::at_byte(&file, file.text.find("<bsdf").unwrap());
         assert_eq!((loc.line, loc.col), (2, 3));
         let e = SceneError::at(&loc, "unknown bsdf \"x\"").with_choices(&["diffuse"]);

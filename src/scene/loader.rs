@@ -20,8 +20,8 @@ use crate::geometry::{Shape, ShapeGeometry};
 use crate::integrator::{Direct, Integrator, ParticleTracer, PathTracer};
 use crate::math::Transform;
 use crate::sampler::SamplerSpec;
-use crate::sensor::perspective::horizontal_fov;
-use crate::sensor::{Camera, Orthographic, Perspective};
+use crate::sensor::perspective::{focal_length_fov, horizontal_fov, parse_focal_length};
+use crate::sensor::{Camera, Orthographic, Perspective, ThinLens};
 use crate::spectrum::{Emission, Rgb};
 use crate::texture::bitmap::{self, Bitmap};
 use crate::texture::{Checkerboard, Texture, uv_transform};
@@ -34,9 +34,9 @@ pub const SHAPES: [&str; 6] = ["rectangle", "cube", "disk", "sphere", "obj", "pl
 pub const BSDFS: [&str; 8] = ["conductor", "dielectric", "diffuse", "plastic", "polarizer", "retarder", "thindielectric", "twosided"];
 pub const TEXTURES: [&str; 2] = ["bitmap", "checkerboard"];
 pub const EMITTERS: [&str; 5] = ["area", "point", "spot", "constant", "directional"];
-pub const SENSORS: [&str; 2] = ["perspective", "orthographic"];
+pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
-pub const RFILTERS: [&str; 3] = ["box", "tent", "gaussian"];
+pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
 pub const SAMPLERS: [&str; 1] = ["independent"];
 pub const INTEGRATORS: [&str; 4] = ["direct", "path", "ptracer", "stokes"];
 
@@ -86,10 +86,49 @@ fn collect_ids(node: &Node, ids: &mut HashMap<String, Arc<Node>>) -> Result<()> 
     Ok(())
 }
 
-/// A file name relative to the scene file that mentions it.
+/// Where a file name written in the scene is read from: the first of the
+/// document's search folders that holds it (`<path>` folders, the scene's
+/// folder, the working directory; see [`super::search`]).
 fn resolve_path(node: &Node, name: &str) -> PathBuf {
-    let p = Path::new(name);
-    if p.is_absolute() { p.to_path_buf() } else { node.loc.file.path.parent().unwrap_or(Path::new(".")).join(p) }
+    node.loc.file.search.resolve_or_default(name)
+}
+
+/// `e` with the folders searched for `name` as help, if no such file exists.
+fn with_search_help(e: SceneError, node: &Node, name: &str) -> SceneError {
+    match node.loc.file.search.not_found_help(name) {
+        Some(help) if e.help.is_none() => e.with_help(help),
+        _ => e,
+    }
+}
+
+/// The horizontal field of view (degrees) of a perspective or thin-lens
+/// sensor, as Mitsuba's `parse_fov`: `fov` along `fov_axis`, or else
+/// `focal_length` (default `50mm`, 35 mm film equivalent, on the diagonal).
+fn sensor_fov(props: &Props, aspect: f32) -> Result<f32> {
+    if props.has("fov") && props.has("focal_length") {
+        return Err(props.error_at("focal_length", "give either a field of view (\"fov\") or a focal length (\"focal_length\"), not both"));
+    }
+    if props.has("fov") {
+        let fov = props.float_checked("fov", f32::NAN, |f| f > 0.0 && f < 180.0, "an angle in (0, 180) degrees")?;
+        let axis = props.choice("fov_axis", "x", &["x", "y", "smaller", "larger", "diagonal"])?;
+        return Ok(horizontal_fov(fov, axis, aspect));
+    }
+    let given = props.node.props.iter().find(|p| p.name == "focal_length").map(|p| &p.value);
+    let mm = match given {
+        None => 50.0,
+        Some(xml::Value::String(_)) => {
+            let text = props.string_req("focal_length")?;
+            parse_focal_length(text).ok_or_else(|| {
+                props.error_at("focal_length", format!("focal length \"{text}\" is not of the form <x>mm with a positive number x"))
+            })?
+        }
+        Some(_) => props.float_checked("focal_length", 50.0, |f| f > 0.0 && f.is_finite(), "positive (millimetres)")? as f64,
+    };
+    let fov_x = horizontal_fov(focal_length_fov(mm) as f32, "diagonal", aspect);
+    if !(fov_x > 0.0 && fov_x < 180.0) {
+        return Err(props.error_at("focal_length", "this focal length gives no valid field of view"));
+    }
+    Ok(fov_x)
 }
 
 /// Default indices of refraction (Mitsuba's defaults by name).
@@ -98,6 +137,10 @@ const AIR: f32 = 1.000_277;
 const POLYPROPYLENE: f32 = 1.49;
 
 fn unknown_plugin(node: &Node, choices: &[&str]) -> SceneError {
+    if let Some(feature) = super::unsupported::plugin(node.kind, &node.plugin) {
+        return SceneError::at(&node.loc, format!("the {} plugin \"{}\" ({feature}) is not supported yet", node.kind.tag(), node.plugin))
+            .with_help(format!("supported {} plugins: {}", node.kind.tag(), choices.join(", ")));
+    }
     SceneError::at(&node.loc, format!("unknown {} plugin \"{}\"", node.kind.tag(), node.plugin)).with_choices(choices)
 }
 
@@ -306,7 +349,7 @@ impl Loader {
         let path = resolve_path(node, filename);
         let file_loc = node.props.iter().find(|p| p.name == "filename").map_or(&node.loc, |p| &p.loc);
         let raw = if node.plugin == "obj" { mesh_io::read_obj(&path) } else { mesh_io::read_ply(&path) }
-            .map_err(|e| SceneError::at(file_loc, e))?;
+            .map_err(|e| with_search_help(SceneError::at(file_loc, e), node, filename))?;
         let positions: Vec<Vec3> = raw.positions.iter().map(|&p| to_world.point(p)).collect();
         let normals = if face_normals {
             None
@@ -484,7 +527,8 @@ impl Loader {
                 let raw = props.bool("raw", false)?;
                 let path = resolve_path(node, filename);
                 let loc = node.props.iter().find(|p| p.name == "filename").map_or(&node.loc, |p| &p.loc);
-                let (width, height, texels) = bitmap::read_image(&path, raw).map_err(|e| SceneError::at(loc, e))?;
+                let (width, height, texels) =
+                    bitmap::read_image(&path, raw).map_err(|e| with_search_help(SceneError::at(loc, e), node, filename))?;
                 if width == 0 || height == 0 {
                     return Err(SceneError::at(loc, format!("image {} is empty", path.display())));
                 }
@@ -585,13 +629,31 @@ impl Loader {
         let near_clip = props.float_checked("near_clip", 0.01, |v| v >= 0.0, "non-negative")?;
         let far_clip = props.float_checked("far_clip", 10000.0, |v| v > near_clip, "greater than near_clip")?;
         let camera = match node.plugin.as_str() {
-            "perspective" => {
-                let fov = props.float_checked("fov", f32::NAN, |f| f > 0.0 && f < 180.0, "an angle in (0, 180) degrees")?;
-                let axis = props.choice("fov_axis", "x", &["x", "y", "smaller", "larger", "diagonal"])?;
-                // A pinhole has everything in focus; the distance is accepted for Mitsuba compatibility.
-                props.float_checked("focus_distance", 1.0, |v| v > 0.0, "positive")?;
-                let fov_x = horizontal_fov(fov, axis, aspect);
-                Camera::Perspective(Perspective::new(to_world, (fov_x.to_radians() * 0.5).tan(), aspect, near_clip, far_clip))
+            "perspective" | "thinlens" => {
+                let tan_half_x = (sensor_fov(&props, aspect)?.to_radians() * 0.5).tan();
+                let offset = glam::Vec2::new(
+                    props.float_checked("principal_point_offset_x", 0.0, f32::is_finite, "finite")?,
+                    props.float_checked("principal_point_offset_y", 0.0, f32::is_finite, "finite")?,
+                );
+                // Mitsuba's default focus distance is the far clip distance.
+                let focus_distance = props.float_checked("focus_distance", far_clip, |v| v > 0.0 && v.is_finite(), "positive")?;
+                if node.plugin == "perspective" {
+                    // A pinhole has everything in focus; the distance is accepted for Mitsuba compatibility.
+                    Camera::Perspective(Perspective::new(to_world, tan_half_x, aspect, near_clip, far_clip).with_principal_offset(offset))
+                } else {
+                    let radius = props.float_checked("aperture_radius", f32::NAN, |r| r >= 0.0 && r.is_finite(), "a non-negative radius")?;
+                    Camera::ThinLens(ThinLens {
+                        to_world,
+                        tan_half_x,
+                        aspect,
+                        near_clip,
+                        far_clip,
+                        // Mitsuba replaces a zero radius by the float epsilon.
+                        aperture_radius: if radius == 0.0 { f32::EPSILON / 2.0 } else { radius },
+                        focus_distance,
+                        principal_offset: offset,
+                    })
+                }
             }
             _ => Camera::Orthographic(Orthographic { to_world, aspect, near_clip, far_clip }),
         };
@@ -625,6 +687,14 @@ impl Loader {
             "box" => Filter::new(FilterKind::Box),
             "tent" => Filter::new(FilterKind::Tent { radius: props.float_checked("radius", 1.0, |r| r > 0.0 && r <= 4.0, "in (0, 4]")? }),
             "gaussian" => Filter::gaussian(props.float_checked("stddev", 0.5, |s| s > 0.0 && s <= 1.0, "in (0, 1]")?),
+            "mitchell" => Filter::new(FilterKind::Mitchell {
+                b: props.float_checked("B", 1.0 / 3.0, f32::is_finite, "finite")?,
+                c: props.float_checked("C", 1.0 / 3.0, f32::is_finite, "finite")?,
+            }),
+            "catmullrom" => Filter::catmull_rom(),
+            "lanczos" => Filter::new(FilterKind::Lanczos {
+                lobes: props.int_checked("lobes", 3, |l| (1..=4).contains(&l), "between 1 and 4 (the film splats at most 4 pixels away)")? as u32,
+            }),
             _ => return Err(unknown_plugin(node, &RFILTERS)),
         };
         props.finish()?;

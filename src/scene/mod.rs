@@ -9,6 +9,8 @@
 pub mod error;
 pub mod loader;
 pub mod props;
+pub mod search;
+pub mod unsupported;
 pub mod xml;
 
 pub use error::{Location, SceneError};

@@ -1,9 +1,21 @@
 //! Stage 1 of scene loading: Mitsuba 3 XML text → a tree of [`Node`]s with
 //! typed, located properties. `<default>` parameters and `$name` substitution,
 //! `<include>` and transforms are resolved here; references (`<ref id>`) are
-//! kept by name and resolved by the loader.
+//! kept by name and resolved by the loader. `<path value>` adds a search
+//! folder (see [`super::search`]) that every [`SourceFile`] of the document
+//! shares, so the loader resolves file names against it.
+//!
+//! Scene files older than version 2.0.0 (Mitsuba 0.5/0.6) are upgraded in
+//! memory as Mitsuba 3 upgrades them: property and object names from
+//! camelCase to snake_case (`toWorld` → `to_world`, `intIOR` → `int_ior`,
+//! `sampleCount` → `sample_count`), `<lookAt>` → `<lookat>`, ids that start
+//! with `_` renamed `ID_…__UPGR`, the `diffuse` BSDF's `diffuseReflectance`
+//! → `reflectance`, and `uoffset`/`voffset`/`uscale`/`vscale` floats turned
+//! into a `to_uv` transform. Plugins that Mitsuba 3 removed are not renamed
+//! (Mitsuba does not either): they fail as unknown plugins.
 
 use super::error::{Location, Result, SceneError, SourceFile};
+use super::search::{SearchPaths, folder_of};
 use crate::math::Transform;
 use glam::{Mat4, Vec3, Vec4};
 use std::collections::HashMap;
@@ -126,21 +138,26 @@ pub struct Node {
 /// Reads a scene file. `params` are the `-D name=value` overrides; a
 /// `<default>` only sets a parameter that is not given there.
 pub fn parse_file(path: &Path, params: &HashMap<String, String>) -> Result<Node> {
-    let mut parser = Parser { params: params.clone(), include_depth: 0 };
+    let mut parser = Parser::new(params, path);
     let root = parser.parse_root(path)?;
     Ok(root)
 }
 
 /// Parses scene text as if it were read from `path` (used by tests and the API).
 pub fn parse_str(path: &Path, text: &str, params: &HashMap<String, String>) -> Result<Node> {
-    let mut parser = Parser { params: params.clone(), include_depth: 0 };
-    let file = Arc::new(SourceFile { path: path.to_path_buf(), text: text.to_string() });
+    let mut parser = Parser::new(params, path);
+    let file = Arc::new(SourceFile { path: path.to_path_buf(), text: text.to_string(), search: parser.search.clone() });
     parser.parse_document(file)
 }
 
 struct Parser {
     params: HashMap<String, String>,
     include_depth: u32,
+    /// The search folders of this document and its includes.
+    search: Arc<SearchPaths>,
+    /// Whether the file being parsed is older than version 2.0.0 and is
+    /// upgraded as Mitsuba 3 upgrades it.
+    legacy: bool,
 }
 
 type XNode<'a, 'i> = roxmltree::Node<'a, 'i>;
@@ -160,17 +177,26 @@ fn attr_loc(file: &Arc<SourceFile>, node: &XNode, name: &str) -> Location {
 }
 
 impl Parser {
+    fn new(params: &HashMap<String, String>, scene_file: &Path) -> Parser {
+        Parser {
+            params: params.clone(),
+            include_depth: 0,
+            search: Arc::new(SearchPaths::for_scene(scene_file)),
+            legacy: false,
+        }
+    }
+
     fn parse_root(&mut self, path: &Path) -> Result<Node> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| SceneError::file(path, format!("cannot read scene file: {e}")))?;
-        let file = Arc::new(SourceFile { path: path.to_path_buf(), text });
+        let file = Arc::new(SourceFile { path: path.to_path_buf(), text, search: self.search.clone() });
         self.parse_document(file)
     }
 
     fn parse_document(&mut self, file: Arc<SourceFile>) -> Result<Node> {
         // A UTF-8 byte-order mark is not part of the first line's columns.
         let file = match file.text.strip_prefix('\u{feff}') {
-            Some(text) => Arc::new(SourceFile { path: file.path.clone(), text: text.to_string() }),
+            Some(text) => Arc::new(SourceFile { path: file.path.clone(), text: text.to_string(), search: file.search.clone() }),
             None => file,
         };
         let doc = roxmltree::Document::parse(&file.text).map_err(|e| {
@@ -182,28 +208,62 @@ impl Parser {
         if root.tag_name().name() != "scene" {
             return Err(SceneError::at(&loc, format!("the root element is <{}>, expected <scene>", root.tag_name().name())));
         }
-        let version = root.attribute("version").ok_or_else(|| {
-            SceneError::at(&loc, "<scene> has no version attribute").with_help("write <scene version=\"3.0.0\">")
-        })?;
-        let major = version.split('.').next().and_then(|m| m.trim().parse::<u32>().ok());
-        match major {
-            Some(m) if m >= 2 => {}
-            _ => {
-                return Err(SceneError::at(&attr_loc(&file, &root, "version"), format!("unsupported scene version \"{version}\""))
-                    .with_help("Snell reads Mitsuba 3 scenes (version 2.0.0 or later)"));
+        // An included file may omit its version (Mitsuba then upgrades nothing).
+        let legacy = match root.attribute("version") {
+            None if self.include_depth > 0 => false,
+            None => {
+                return Err(SceneError::at(&loc, "<scene> has no version attribute").with_help("write <scene version=\"3.0.0\">"));
             }
-        }
+            Some(version) => match parse_version(version) {
+                Some(major) => major < 2,
+                None => {
+                    return Err(SceneError::at(&attr_loc(&file, &root, "version"), format!("unsupported scene version \"{version}\""))
+                        .with_help("a version is three numbers, e.g. version=\"3.0.0\" (files older than 2.0.0 are upgraded as Mitsuba 3 upgrades them)"));
+                }
+            },
+        };
         self.check_attrs(&file, &root, &["version"])?;
         let mut node = Node { kind: Kind::Scene, plugin: String::new(), id: None, loc, props: vec![], children: vec![] };
-        self.parse_children(&file, &root, &mut node)?;
+        let outer = std::mem::replace(&mut self.legacy, legacy);
+        let parsed = self.parse_children(&file, &root, &mut node);
+        self.legacy = outer;
+        parsed?;
         Ok(node)
     }
 
     /// `$name` substitution in an attribute value.
     fn attr(&self, file: &Arc<SourceFile>, node: &XNode, name: &str) -> Result<Option<String>> {
         let Some(raw) = node.attribute(name) else { return Ok(None) };
+        self.substitute(file, node, name, raw).map(Some)
+    }
+
+    /// The `name` attribute of an object, reference or property inside
+    /// `parent`, upgraded (before `$` substitution, as Mitsuba does) in a
+    /// legacy file.
+    fn name_attr(&self, file: &Arc<SourceFile>, node: &XNode, parent: &Node) -> Result<Option<String>> {
+        let Some(raw) = node.attribute("name") else { return Ok(None) };
+        if !self.legacy {
+            return self.substitute(file, node, "name", raw).map(Some);
+        }
+        let mut name = legacy_snake_case(raw);
+        if parent.kind == Kind::Bsdf && parent.plugin == "diffuse" && name == "diffuse_reflectance" {
+            name = "reflectance".to_string();
+        }
+        self.substitute(file, node, "name", &name).map(Some)
+    }
+
+    /// The `id` attribute; in a legacy file an id starting with `_` (reserved
+    /// in Mitsuba 3) becomes `ID_…__UPGR`.
+    fn id_attr(&self, file: &Arc<SourceFile>, node: &XNode) -> Result<Option<String>> {
+        match node.attribute("id") {
+            Some(raw) if self.legacy && raw.starts_with('_') => self.substitute(file, node, "id", &format!("ID{raw}__UPGR")).map(Some),
+            _ => self.attr(file, node, "id"),
+        }
+    }
+
+    fn substitute(&self, file: &Arc<SourceFile>, node: &XNode, name: &str, raw: &str) -> Result<String> {
         if !raw.contains('$') {
-            return Ok(Some(raw.to_string()));
+            return Ok(raw.to_string());
         }
         let mut out = String::new();
         let mut rest = raw;
@@ -228,7 +288,7 @@ impl Parser {
             rest = &after[end..];
         }
         out.push_str(rest);
-        Ok(Some(out))
+        Ok(out)
     }
 
     fn req_attr(&self, file: &Arc<SourceFile>, node: &XNode, name: &str) -> Result<String> {
@@ -267,10 +327,13 @@ impl Parser {
         if let Some(kind) = Kind::from_tag(tag).filter(|k| *k != Kind::Scene) {
             self.check_attrs(file, x, &["type", "id", "name"])?;
             let plugin = self.req_attr(file, x, "type")?;
-            let id = self.attr(file, x, "id")?;
-            let name = self.attr(file, x, "name")?;
+            let id = self.id_attr(file, x)?;
+            let name = self.name_attr(file, x, out)?;
             let mut node = Node { kind, plugin, id, loc: loc.clone(), props: vec![], children: vec![] };
             self.parse_children(file, x, &mut node)?;
+            if self.legacy {
+                upgrade_uv_floats(&mut node);
+            }
             out.children.push(Child { name, target: ChildTarget::Inline(Arc::new(node)), loc });
             return Ok(());
         }
@@ -286,8 +349,8 @@ impl Parser {
             }
             "ref" => {
                 self.check_attrs(file, x, &["id", "name"])?;
-                let id = self.req_attr(file, x, "id")?;
-                let name = self.attr(file, x, "name")?;
+                let id = self.id_attr(file, x)?.ok_or_else(|| SceneError::at(&loc, "<ref> needs a \"id\" attribute"))?;
+                let name = self.name_attr(file, x, out)?;
                 out.children.push(Child { name, target: ChildTarget::Ref(id), loc });
             }
             "include" => {
@@ -296,8 +359,15 @@ impl Parser {
                 }
                 self.check_attrs(file, x, &["filename"])?;
                 let name = self.req_attr(file, x, "filename")?;
-                let base = file.path.parent().unwrap_or(Path::new("."));
-                let path = base.join(&name);
+                // As Mitsuba: through the search folders (the <path>s so far,
+                // then the top-level scene's folder), also from an included file.
+                let path = self.search.resolve(&name).map_err(|_| {
+                    let e = SceneError::at(&attr_loc(file, x, "filename"), format!("cannot read included file \"{name}\": not found"));
+                    match self.search.not_found_help(&name) {
+                        Some(h) => e.with_help(h),
+                        None => e,
+                    }
+                })?;
                 if self.include_depth > 16 {
                     return Err(SceneError::at(&loc, "includes nested too deeply (a cycle?)"));
                 }
@@ -305,14 +375,39 @@ impl Parser {
                     SceneError::at(&attr_loc(file, x, "filename"), format!("cannot read included file {}: {e}", path.display()))
                 })?;
                 self.include_depth += 1;
-                let sub = self.parse_document(Arc::new(SourceFile { path, text }));
+                let sub = self.parse_document(Arc::new(SourceFile { path, text, search: self.search.clone() }));
                 self.include_depth -= 1;
                 let sub = sub?;
                 out.props.extend(sub.props);
                 out.children.extend(sub.children);
             }
+            "path" => {
+                if out.kind != Kind::Scene {
+                    return Err(SceneError::at(&loc, "<path> may only appear directly inside <scene>"));
+                }
+                self.check_attrs(file, x, &["value"])?;
+                let value = self.req_attr(file, x, "value")?;
+                let p = Path::new(&value);
+                // Relative to the folder of the file that declares it; else
+                // through the search folders (as Mitsuba does).
+                let folder = if p.is_absolute() {
+                    p.to_path_buf()
+                } else {
+                    let local = folder_of(&file.path).join(p);
+                    if local.exists() { local } else { self.search.resolve(&value).unwrap_or(local) }
+                };
+                if !folder.is_dir() {
+                    return Err(SceneError::at(&attr_loc(file, x, "value"), format!("<path>: folder \"{value}\" not found"))
+                        .with_help(format!("looked for {}", folder.display())));
+                }
+                self.search.prepend(folder);
+            }
+            tag if super::unsupported::element(tag).is_some() => {
+                let what = super::unsupported::element(tag).unwrap_or_default();
+                return Err(SceneError::at(&loc, format!("<{tag}> elements ({what}) are not supported yet")));
+            }
             "integer" | "float" | "boolean" | "string" | "rgb" | "spectrum" | "point" | "vector" | "transform" => {
-                let prop = self.parse_property(file, x)?;
+                let prop = self.parse_property(file, x, out)?;
                 if out.kind == Kind::Scene {
                     return Err(SceneError::at(&prop.loc, format!("<{tag}> properties are not allowed directly inside <scene>")));
                 }
@@ -327,7 +422,7 @@ impl Parser {
             _ => {
                 let mut valid: Vec<&str> = Kind::ALL.iter().filter(|k| **k != Kind::Scene).map(|k| k.tag()).collect();
                 valid.extend([
-                    "ref", "default", "include", "integer", "float", "boolean", "string", "rgb", "spectrum", "point", "vector",
+                    "ref", "default", "include", "path", "integer", "float", "boolean", "string", "rgb", "spectrum", "point", "vector",
                     "transform",
                 ]);
                 return Err(SceneError::at(&loc, format!("unknown element <{tag}>")).with_choices(&valid));
@@ -336,10 +431,10 @@ impl Parser {
         Ok(())
     }
 
-    fn parse_property(&self, file: &Arc<SourceFile>, x: &XNode) -> Result<Prop> {
+    fn parse_property(&self, file: &Arc<SourceFile>, x: &XNode, parent: &Node) -> Result<Prop> {
         let tag = x.tag_name().name();
         let loc = loc_of(file, x);
-        let name = self.req_attr(file, x, "name")?;
+        let name = self.name_attr(file, x, parent)?.ok_or_else(|| SceneError::at(&loc, format!("<{tag}> needs a \"name\" attribute")))?;
         let num = |attr: &str| -> Result<f64> {
             let s = self.req_attr(file, x, attr)?;
             parse_f64(&s).ok_or_else(|| {
@@ -459,6 +554,8 @@ impl Parser {
                 return Err(SceneError::at(&loc, "unexpected text inside <transform>"));
             }
             let tag = op.tag_name().name();
+            // Mitsuba 0.x spelled it <lookAt>.
+            let tag = if self.legacy && tag == "lookAt" { "lookat" } else { tag };
             let degenerate = || SceneError::at(&loc, format!("<{tag}> gives a degenerate (non-invertible) transform"));
             let t = match tag {
                 "translate" => {
@@ -517,6 +614,61 @@ impl Parser {
         }
         Ok(m)
     }
+}
+
+/// A version attribute's major number: one to three numbers separated by
+/// periods (Mitsuba writes three).
+fn parse_version(version: &str) -> Option<u32> {
+    let parts: Vec<&str> = version.trim().split('.').collect();
+    if parts.is_empty() || parts.len() > 3 || parts.iter().any(|p| p.trim().parse::<u32>().is_err()) {
+        return None;
+    }
+    parts[0].trim().parse().ok()
+}
+
+/// Mitsuba 3's upgrade of a legacy parameter name: at each lower-case letter
+/// followed by an upper-case one, insert `_` and lower the run of upper-case
+/// letters after it (`toWorld` → `to_world`, `intIOR` → `int_ior`).
+pub fn legacy_snake_case(name: &str) -> String {
+    let mut s: Vec<u8> = name.bytes().collect();
+    let mut i = 0;
+    while i + 1 < s.len() {
+        if s[i].is_ascii_lowercase() && s[i + 1].is_ascii_uppercase() {
+            s.insert(i + 1, b'_');
+            i += 2;
+            while i < s.len() && s[i].is_ascii_uppercase() {
+                s[i] = s[i].to_ascii_lowercase();
+                i += 1;
+            }
+        }
+        i += 1;
+    }
+    String::from_utf8_lossy(&s).into_owned()
+}
+
+/// Mitsuba 3's upgrade of legacy texture offsets and scales: the floats
+/// `uoffset`, `voffset`, `uscale`, `vscale` become a `to_uv` transform that
+/// translates by the offset, then scales.
+fn upgrade_uv_floats(node: &mut Node) {
+    const NAMES: [&str; 4] = ["uoffset", "voffset", "uscale", "vscale"];
+    let is_uv = |p: &Prop| NAMES.contains(&p.name.as_str()) && matches!(p.value, Value::Float(_));
+    let Some(first) = node.props.iter().find(|p| is_uv(p)).map(|p| p.loc.clone()) else { return };
+    let (mut offset, mut scale) = ([0.0f32; 2], [1.0f32; 2]);
+    for p in node.props.iter().filter(|p| is_uv(p)) {
+        if let Value::Float(v) = p.value {
+            match p.name.as_str() {
+                "uoffset" => offset[0] = v as f32,
+                "voffset" => offset[1] = v as f32,
+                "uscale" => scale[0] = v as f32,
+                _ => scale[1] = v as f32,
+            }
+        }
+    }
+    node.props.retain(|p| !is_uv(p));
+    let m = Mat4::from_scale(Vec3::new(scale[0], scale[1], 1.0)) * Mat4::from_translation(Vec3::new(offset[0], offset[1], 0.0));
+    // A zero scale has no inverse; keep the matrix, with the identity as its (unused) inverse.
+    let t = Transform::from_matrix(m).unwrap_or(Transform { matrix: m, inverse: Mat4::IDENTITY });
+    node.props.push(Prop { name: "to_uv".to_string(), value: Value::Transform(t), loc: first });
 }
 
 fn value_is_finite(v: &Value) -> bool {

@@ -6,17 +6,21 @@
 
 pub mod orthographic;
 pub mod perspective;
+pub mod thinlens;
 
 pub use orthographic::Orthographic;
 pub use perspective::{CameraConnection, Perspective};
+pub use thinlens::ThinLens;
 
 use crate::geometry::Ray;
+use crate::sampler::Sampler;
 use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub enum Camera {
     Perspective(Perspective),
     Orthographic(Orthographic),
+    ThinLens(ThinLens),
 }
 
 impl Camera {
@@ -25,6 +29,17 @@ impl Camera {
         match self {
             Camera::Perspective(c) => c.generate_ray(film),
             Camera::Orthographic(c) => c.generate_ray(film),
+            Camera::ThinLens(c) => c.generate_ray(film, Vec2::splat(0.5)),
+        }
+    }
+
+    /// The ray through film position `film`, drawing the aperture sample a
+    /// thin lens needs from `sampler` (pinhole cameras draw nothing).
+    #[inline]
+    pub fn sample_ray(&self, film: Vec2, sampler: &mut Sampler) -> Ray {
+        match self {
+            Camera::ThinLens(c) => c.generate_ray(film, sampler.next_2d()),
+            _ => self.generate_ray(film),
         }
     }
 
@@ -34,6 +49,7 @@ impl Camera {
         let to_world = match self {
             Camera::Perspective(c) => &c.to_world,
             Camera::Orthographic(c) => &c.to_world,
+            Camera::ThinLens(c) => &c.to_world,
         };
         to_world.vector(Vec3::Y).normalize_or_zero()
     }

@@ -4,6 +4,8 @@
 //! |---|---|---|---|
 //! | `fov` | float | — | field of view in degrees, along `fov_axis` |
 //! | `fov_axis` | string | `x` | `x`, `y`, `smaller`, `larger` or `diagonal` |
+//! | `focal_length` | string | `50mm` | used when `fov` is not given: the focal length of a 35 mm film camera (36 × 24 mm), so the field of view along the image diagonal is 2·atan(43.27 mm / (2·f)) (Mitsuba's `parse_fov`); `"35mm"` or `"35"` |
+//! | `principal_point_offset_x/y` | float | 0 | shift of the image centre (the optical axis), in fractions of the film width/height |
 //! | `to_world` | transform | identity | camera placement (usually a `lookat`) |
 //! | `near_clip`, `far_clip` | float | 0.01, 10000 | clip distances along the view axis |
 //!
@@ -28,6 +30,9 @@ pub struct Perspective {
     pub aspect: f32,
     pub near_clip: f32,
     pub far_clip: f32,
+    /// Added to the film position of every ray (Mitsuba's
+    /// `principal_point_offset_x/y`, fractions of the film).
+    pub principal_offset: Vec2,
     /// Precomputed so a camera ray costs two multiply-adds and one
     /// normalisation: the world-space origin, and the world-space images of
     /// the camera's x and y half-extents at depth 1 and of its axis.
@@ -36,6 +41,19 @@ pub struct Perspective {
     half_y: Vec3,
     axis: Vec3,
 }
+/// The field of view (degrees) along the image diagonal of a 35 mm film
+/// camera (36 × 24 mm) of focal length `mm` millimetres (Mitsuba's `parse_fov`).
+pub fn focal_length_fov(mm: f64) -> f64 {
+    2.0 * ((36.0f64 * 36.0 + 24.0 * 24.0).sqrt() / (2.0 * mm)).atan().to_degrees()
+}
+
+/// A focal length as Mitsuba writes it: a number, optionally followed by `mm`.
+pub fn parse_focal_length(text: &str) -> Option<f64> {
+    let t = text.trim();
+    let t = t.strip_suffix("mm").unwrap_or(t);
+    t.trim().parse::<f64>().ok().filter(|v| v.is_finite() && *v > 0.0)
+}
+
 /// The horizontal field of view (degrees) for a `fov` given along `axis`.
 pub fn horizontal_fov(fov: f32, axis: &str, aspect: f32) -> f32 {
     let axis = match axis {
@@ -68,7 +86,15 @@ impl Perspective {
             aspect,
             near_clip,
             far_clip,
+            principal_offset: Vec2::ZERO,
         }
+    }
+
+    /// The same camera with its image centre shifted by `offset` (fractions
+    /// of the film).
+    pub fn with_principal_offset(mut self, offset: Vec2) -> Perspective {
+        self.principal_offset = offset;
+        self
     }
 
     /// The ray through film position `film` ∈ [0,1]² (top left (0,0)),
@@ -77,6 +103,7 @@ impl Perspective {
     pub fn generate_ray(&self, film: Vec2) -> Ray {
         // Camera space: (x, y, 1) through the film point; its length converts
         // clip depths along the axis into distances along the ray.
+        let film = film + self.principal_offset;
         let (sx, sy) = (1.0 - 2.0 * film.x, 1.0 - 2.0 * film.y);
         let local_len = (sx * sx * self.tan_half_x * self.tan_half_x
             + sy * sy * (self.tan_half_x / self.aspect) * (self.tan_half_x / self.aspect)
@@ -116,7 +143,8 @@ impl Perspective {
         }
         let tan_half_y = self.tan_half_x / self.aspect;
         let (sx, sy) = (local.x / (local.z * self.tan_half_x), local.y / (local.z * tan_half_y));
-        if !(sx.abs() <= 1.0 && sy.abs() <= 1.0) {
+        let film = Vec2::new(0.5 * (1.0 - sx), 0.5 * (1.0 - sy)) - self.principal_offset;
+        if !((0.0..=1.0).contains(&film.x) && (0.0..=1.0).contains(&film.y)) {
             return None;
         }
         let v = self.origin - p;
@@ -127,7 +155,7 @@ impl Perspective {
         let cos_theta = local.z / local.length();
         let area = 4.0 * self.tan_half_x * tan_half_y;
         let importance = (width as f32 * height as f32) / (area * cos_theta * cos_theta * cos_theta);
-        Some(CameraConnection { film: Vec2::new(0.5 * (1.0 - sx), 0.5 * (1.0 - sy)), d: v / dist, dist, importance })
+        Some(CameraConnection { film, d: v / dist, dist, importance })
     }
 
     pub fn origin(&self) -> Vec3 {
@@ -149,6 +177,31 @@ mod tests {
         assert_eq!(horizontal_fov(40.0, "larger", 0.5), x.min(horizontal_fov(40.0, "y", 0.5)));
         let d = horizontal_fov(60.0, "diagonal", 1.0);
         assert!(((d.to_radians() / 2.0).tan() * 2f32.sqrt() - (30.0f32.to_radians()).tan()).abs() < 1e-5);
+    }
+
+    #[test]
+    fn focal_length_gives_mitsubas_diagonal_fov() {
+        // 50 mm on 36 × 24 mm film: diagonal 43.267 mm, fov 2·atan(43.267/100) = 46.793°.
+        assert!((focal_length_fov(50.0) - 46.7930).abs() < 1e-3, "{}", focal_length_fov(50.0));
+        assert_eq!(parse_focal_length("50mm"), Some(50.0));
+        assert_eq!(parse_focal_length(" 28 "), Some(28.0));
+        assert_eq!(parse_focal_length("mm"), None);
+        assert_eq!(parse_focal_length("-3mm"), None);
+        // On a 3:2 film the diagonal fov of a 50 mm lens is 39.6° horizontally (36 mm wide).
+        let x = horizontal_fov(focal_length_fov(50.0) as f32, "diagonal", 1.5);
+        assert!(((x.to_radians() * 0.5).tan() - 18.0 / 50.0).abs() < 1e-5, "{x}");
+    }
+
+    #[test]
+    fn principal_point_offset_shifts_the_image() {
+        let to_world = Transform::look_at(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y).unwrap();
+        let cam = Perspective::new(to_world, 1.0, 1.0, 0.01, 100.0);
+        let shifted = cam.clone().with_principal_offset(Vec2::new(0.1, -0.2));
+        let a = shifted.generate_ray(Vec2::new(0.3, 0.6));
+        let b = cam.generate_ray(Vec2::new(0.4, 0.4));
+        assert!((a.d - b.d).length() < 1e-6);
+        let c = shifted.connect(a.at(3.0), 10, 10).unwrap();
+        assert!((c.film - Vec2::new(0.3, 0.6)).length() < 1e-4, "{:?}", c.film);
     }
 
     #[test]
