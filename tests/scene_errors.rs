@@ -212,14 +212,14 @@ fn unknown_plugin_of_every_kind() {
     let e = load_err(&text);
     assert_error(&e, &scene_path(), 4, 9, "<film", "unknown film plugin \"ldrfilm\"");
     assert_help(&e, &["hdrfilm"]);
-    let text = HEAD.replace("type=\"perspective\"", "type=\"thinlens\"") + "</scene>\n";
+    let text = HEAD.replace("type=\"perspective\"", "type=\"radiancemeter\"") + "</scene>\n";
     let e = load_err(&text);
-    assert_error(&e, &scene_path(), 2, 5, "<sensor", "unknown sensor plugin \"thinlens\"");
-    assert_help(&e, &["perspective", "orthographic"]);
-    let text = HEAD.replace("        </film>", "            <rfilter type=\"lanczos\"/>\n        </film>") + "</scene>\n";
+    assert_error(&e, &scene_path(), 2, 5, "<sensor", "unknown sensor plugin \"radiancemeter\"");
+    assert_help(&e, &["perspective", "orthographic", "thinlens"]);
+    let text = HEAD.replace("        </film>", "            <rfilter type=\"blackman\"/>\n        </film>") + "</scene>\n";
     let e = load_err(&text);
-    assert_error(&e, &scene_path(), 7, 13, "<rfilter", "unknown rfilter plugin \"lanczos\"");
-    assert_help(&e, &["box", "tent", "gaussian"]);
+    assert_error(&e, &scene_path(), 7, 13, "<rfilter", "unknown rfilter plugin \"blackman\"");
+    assert_help(&e, &["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"]);
 }
 
 #[test]
@@ -260,10 +260,22 @@ fn area_emitter_without_radiance() {
 }
 
 #[test]
-fn perspective_sensor_without_fov() {
-    let text = HEAD.replace("        <float name=\"fov\" value=\"40\"/>\n", "") + "</scene>\n";
+fn perspective_sensor_with_fov_and_focal_length() {
+    // Without "fov" a perspective sensor uses Mitsuba's focal_length (50mm,
+    // tests/sensors.rs); both at once is an error at the focal length.
+    let text = HEAD.replace(
+        "        <float name=\"fov\" value=\"40\"/>\n",
+        "        <float name=\"fov\" value=\"40\"/>\n        <string name=\"focal_length\" value=\"35mm\"/>\n",
+    ) + "</scene>\n";
     let e = load_err(&text);
-    assert_error(&e, &scene_path(), 2, 5, "<sensor", "needs the float property \"fov\"");
+    assert_error(&e, &scene_path(), 4, 9, "<string name=\"focal_length\"", "either a field of view (\"fov\") or a focal length");
+    let text = HEAD.replace("        <float name=\"fov\" value=\"40\"/>\n", "        <string name=\"focal_length\" value=\"long\"/>\n") + "</scene>\n";
+    let e = load_err(&text);
+    assert_error(&e, &scene_path(), 3, 9, "<string name=\"focal_length\"", "focal length \"long\" is not of the form <x>mm");
+    // A thin lens needs its aperture.
+    let text = HEAD.replace("type=\"perspective\"", "type=\"thinlens\"") + "</scene>\n";
+    let e = load_err(&text);
+    assert_error(&e, &scene_path(), 2, 5, "<sensor", "needs the float property \"aperture_radius\"");
 }
 
 #[test]

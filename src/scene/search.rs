@@ -1,24 +1,25 @@
-//! Where relative file names are looked up: Mitsuba's `FileResolver`.
+//! Where relative file names are looked up: Mitsuba 3.9's `FileResolver`.
 //!
-//! A scene's relative file names (meshes, textures, `<include>`d files) are
-//! tried against a list of folders, in order, and the first one that holds
-//! the file wins:
+//! A scene's relative file names are tried against a list of folders, in
+//! order, and the first one that holds the file wins. Meshes and textures
+//! (opened by the loader, after the whole document was parsed) use the
+//! folders of the top-level scene file:
 //!
-//! 1. the folders given by `<path value="…"/>`, the one declared last first
-//!    (each `<path>` is *prepended*, as in Mitsuba);
-//! 2. the folder of the scene file that was loaded (the top-level one, also
-//!    for names written in included files);
+//! 1. the folders given by its `<path value="…"/>` elements, the one declared
+//!    last first (each `<path>` is *prepended*, as in Mitsuba);
+//! 2. the folder of the scene file;
 //! 3. the current working directory (the name as written).
 //!
-//! Mitsuba 3.9 tries the working directory before the scene's folder; Snell
-//! tries the scene's folder first, so a scene does not change meaning with the
-//! directory it is rendered from. The two orders differ only when both
-//! folders hold a file of the same name.
+//! (As in Mitsuba 3.9, a `<path>` inside an included file does not apply to
+//! meshes and textures, also not to those of the included file.)
 //!
-//! A `<path>` value that is relative is taken relative to the folder of the
-//! file that contains the `<path>` element, or, if no such folder exists, is
-//! itself resolved against the search folders (as Mitsuba does). It must
-//! name an existing folder.
+//! `<include filename>` and `<path value>` are resolved while parsing, with
+//! the folders of the file that contains them: its own `<path>`s so far
+//! (last first), its own folder, then the folders of the file that included
+//! it (as they were at the `<include>`), and the working directory last. So
+//! an `<include>` inside an included file looks in that file's folder
+//! first, then in the including file's, up to the scene's folder. A `<path>`
+//! must name an existing folder.
 //!
 //! ```xml
 //! <scene version="3.0.0">
@@ -26,10 +27,6 @@
 //!     <shape type="ply"><string name="filename" value="meshes/bunny.ply"/></shape>
 //! </scene>
 //! ```
-//!
-//! Meshes and textures are opened after the whole document was parsed, so
-//! every `<path>` of the document applies to them; an `<include>` is opened
-//! while parsing, so only the `<path>` elements before it apply.
 
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;

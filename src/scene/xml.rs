@@ -6,20 +6,21 @@
 //! shares, so the loader resolves file names against it.
 //!
 //! Scene files older than version 2.0.0 (Mitsuba 0.5/0.6) are upgraded in
-//! memory as Mitsuba 3 upgrades them: property and object names from
-//! camelCase to snake_case (`toWorld` → `to_world`, `intIOR` → `int_ior`,
-//! `sampleCount` → `sample_count`), `<lookAt>` → `<lookat>`, ids that start
-//! with `_` renamed `ID_…__UPGR`, the `diffuse` BSDF's `diffuseReflectance`
-//! → `reflectance`, and `uoffset`/`voffset`/`uscale`/`vscale` floats turned
-//! into a `to_uv` transform. Plugins that Mitsuba 3 removed are not renamed
-//! (Mitsuba does not either): they fail as unknown plugins.
+//! memory as Mitsuba 3.9 upgrades them (its parser's `upgrade_from_v1`):
+//! property and object names from camelCase to snake_case (`toWorld` →
+//! `to_world`, `intIOR` → `int_ior`, `sampleCount` → `sample_count`), the
+//! `diffuse` BSDF's `diffuseReflectance` → `reflectance`, and
+//! `uoffset`/`voffset`/`uscale`/`vscale` turned into a `to_uv` transform
+//! (scale · translate). Nothing else is renamed (Mitsuba 3.9 does not either):
+//! a plugin Mitsuba 3 removed fails as an unknown plugin, and `<lookAt>` as
+//! an unknown transform operation (Mitsuba 3 spells it `<lookat>`).
 
 use super::error::{Location, Result, SceneError, SourceFile};
 use super::search::{SearchPaths, folder_of};
 use crate::math::Transform;
 use glam::{Mat4, Vec3, Vec4};
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// The kinds of scene object, named as Mitsuba's XML tags.
@@ -153,8 +154,14 @@ pub fn parse_str(path: &Path, text: &str, params: &HashMap<String, String>) -> R
 struct Parser {
     params: HashMap<String, String>,
     include_depth: u32,
-    /// The search folders of this document and its includes.
+    /// The top-level file's search folders, which the loader resolves file
+    /// names with (shared by every [`SourceFile`] of the document).
     search: Arc<SearchPaths>,
+    /// The folders the file being parsed resolves `<include>` and `<path>`
+    /// values with (Mitsuba 3.9's per-file resolver): its own `<path>`s
+    /// (last first), its folder, then those of the file that included it as
+    /// they were at the `<include>`. The working directory comes last.
+    folders: Vec<PathBuf>,
     /// Whether the file being parsed is older than version 2.0.0 and is
     /// upgraded as Mitsuba 3 upgrades it.
     legacy: bool,
@@ -182,6 +189,7 @@ impl Parser {
             params: params.clone(),
             include_depth: 0,
             search: Arc::new(SearchPaths::for_scene(scene_file)),
+            folders: vec![folder_of(scene_file)],
             legacy: false,
         }
     }
@@ -238,27 +246,41 @@ impl Parser {
     }
 
     /// The `name` attribute of an object, reference or property inside
-    /// `parent`, upgraded (before `$` substitution, as Mitsuba does) in a
+    /// `parent`, upgraded (after `$` substitution, as Mitsuba 3.9 does) in a
     /// legacy file.
     fn name_attr(&self, file: &Arc<SourceFile>, node: &XNode, parent: &Node) -> Result<Option<String>> {
-        let Some(raw) = node.attribute("name") else { return Ok(None) };
+        let Some(name) = self.attr(file, node, "name")? else { return Ok(None) };
         if !self.legacy {
-            return self.substitute(file, node, "name", raw).map(Some);
+            return Ok(Some(name));
         }
-        let mut name = legacy_snake_case(raw);
+        let name = legacy_snake_case(&name);
         if parent.kind == Kind::Bsdf && parent.plugin == "diffuse" && name == "diffuse_reflectance" {
-            name = "reflectance".to_string();
+            return Ok(Some("reflectance".to_string()));
         }
-        self.substitute(file, node, "name", &name).map(Some)
+        Ok(Some(name))
     }
 
-    /// The `id` attribute; in a legacy file an id starting with `_` (reserved
-    /// in Mitsuba 3) becomes `ID_…__UPGR`.
     fn id_attr(&self, file: &Arc<SourceFile>, node: &XNode) -> Result<Option<String>> {
-        match node.attribute("id") {
-            Some(raw) if self.legacy && raw.starts_with('_') => self.substitute(file, node, "id", &format!("ID{raw}__UPGR")).map(Some),
-            _ => self.attr(file, node, "id"),
+        self.attr(file, node, "id")
+    }
+
+    /// `name` through this file's folders, then the working directory.
+    fn resolve_here(&self, name: &str) -> Result<PathBuf, Vec<PathBuf>> {
+        let p = Path::new(name);
+        if p.is_absolute() {
+            return if p.exists() { Ok(p.to_path_buf()) } else { Err(vec![]) };
         }
+        for f in &self.folders {
+            if f.join(p).exists() {
+                return Ok(f.join(p));
+            }
+        }
+        if p.exists() {
+            return Ok(p.to_path_buf());
+        }
+        let mut searched = self.folders.clone();
+        searched.push(PathBuf::from("."));
+        Err(searched)
     }
 
     fn substitute(&self, file: &Arc<SourceFile>, node: &XNode, name: &str, raw: &str) -> Result<String> {
@@ -359,14 +381,11 @@ impl Parser {
                 }
                 self.check_attrs(file, x, &["filename"])?;
                 let name = self.req_attr(file, x, "filename")?;
-                // As Mitsuba: through the search folders (the <path>s so far,
-                // then the top-level scene's folder), also from an included file.
-                let path = self.search.resolve(&name).map_err(|_| {
-                    let e = SceneError::at(&attr_loc(file, x, "filename"), format!("cannot read included file \"{name}\": not found"));
-                    match self.search.not_found_help(&name) {
-                        Some(h) => e.with_help(h),
-                        None => e,
-                    }
+                // As Mitsuba 3.9: through this file's folders (its <path>s so
+                // far, its own folder, then the including files' folders).
+                let path = self.resolve_here(&name).map_err(|searched| {
+                    SceneError::at(&attr_loc(file, x, "filename"), format!("cannot read included file \"{name}\": not found"))
+                        .with_help(searched_help(&name, &searched))
                 })?;
                 if self.include_depth > 16 {
                     return Err(SceneError::at(&loc, "includes nested too deeply (a cycle?)"));
@@ -375,7 +394,13 @@ impl Parser {
                     SceneError::at(&attr_loc(file, x, "filename"), format!("cannot read included file {}: {e}", path.display()))
                 })?;
                 self.include_depth += 1;
+                // The included file resolves names from its own folder first;
+                // its <path>s apply to itself and the files it includes.
+                let mut inner = vec![folder_of(&path)];
+                inner.extend(self.folders.iter().cloned());
+                let outer = std::mem::replace(&mut self.folders, inner);
                 let sub = self.parse_document(Arc::new(SourceFile { path, text, search: self.search.clone() }));
+                self.folders = outer;
                 self.include_depth -= 1;
                 let sub = sub?;
                 out.props.extend(sub.props);
@@ -387,20 +412,20 @@ impl Parser {
                 }
                 self.check_attrs(file, x, &["value"])?;
                 let value = self.req_attr(file, x, "value")?;
-                let p = Path::new(&value);
-                // Relative to the folder of the file that declares it; else
-                // through the search folders (as Mitsuba does).
-                let folder = if p.is_absolute() {
-                    p.to_path_buf()
-                } else {
-                    let local = folder_of(&file.path).join(p);
-                    if local.exists() { local } else { self.search.resolve(&value).unwrap_or(local) }
-                };
-                if !folder.is_dir() {
-                    return Err(SceneError::at(&attr_loc(file, x, "value"), format!("<path>: folder \"{value}\" not found"))
-                        .with_help(format!("looked for {}", folder.display())));
+                // Resolved as an <include> is (so first from the file's
+                // earlier <path>s, then its own folder).
+                let folder = self.resolve_here(&value).ok().filter(|f| f.is_dir()).ok_or_else(|| {
+                    let mut searched = self.folders.clone();
+                    searched.push(PathBuf::from("."));
+                    SceneError::at(&attr_loc(file, x, "value"), format!("<path>: folder \"{value}\" not found"))
+                        .with_help(searched_help(&value, &searched))
+                })?;
+                self.folders.insert(0, folder.clone());
+                // Mitsuba 3.9 resolves meshes and textures with the top-level
+                // file's folders only: an included file's <path> does not apply.
+                if self.include_depth == 0 {
+                    self.search.prepend(folder);
                 }
-                self.search.prepend(folder);
             }
             tag if super::unsupported::element(tag).is_some() => {
                 let what = super::unsupported::element(tag).unwrap_or_default();
@@ -554,8 +579,6 @@ impl Parser {
                 return Err(SceneError::at(&loc, "unexpected text inside <transform>"));
             }
             let tag = op.tag_name().name();
-            // Mitsuba 0.x spelled it <lookAt>.
-            let tag = if self.legacy && tag == "lookAt" { "lookat" } else { tag };
             let degenerate = || SceneError::at(&loc, format!("<{tag}> gives a degenerate (non-invertible) transform"));
             let t = match tag {
                 "translate" => {
@@ -626,36 +649,51 @@ fn parse_version(version: &str) -> Option<u32> {
     parts[0].trim().parse().ok()
 }
 
-/// Mitsuba 3's upgrade of a legacy parameter name: at each lower-case letter
-/// followed by an upper-case one, insert `_` and lower the run of upper-case
-/// letters after it (`toWorld` → `to_world`, `intIOR` → `int_ior`).
+/// "looked for NAME in: …" help for a file not found in `searched`.
+fn searched_help(name: &str, searched: &[PathBuf]) -> String {
+    let list: Vec<String> = searched.iter().map(|f| format!("\"{}\"", f.display())).collect();
+    format!("looked for \"{name}\" in these folders, in order: {}", list.join(", "))
+}
+
+/// Mitsuba 3.9's upgrade of a legacy parameter name (`camel_to_underscore_case`):
+/// an upper-case letter after a lower-case one becomes `_` and its lower
+/// case, and so do the upper-case letters right after it (`toWorld` →
+/// `to_world`, `intIOR` → `int_ior`).
 pub fn legacy_snake_case(name: &str) -> String {
-    let mut s: Vec<u8> = name.bytes().collect();
+    let b = name.as_bytes();
+    let mut out: Vec<u8> = Vec::with_capacity(b.len() + 4);
     let mut i = 0;
-    while i + 1 < s.len() {
-        if s[i].is_ascii_lowercase() && s[i + 1].is_ascii_uppercase() {
-            s.insert(i + 1, b'_');
-            i += 2;
-            while i < s.len() && s[i].is_ascii_uppercase() {
-                s[i] = s[i].to_ascii_lowercase();
+    while i < b.len() {
+        if i > 0 && b[i - 1].is_ascii_lowercase() && b[i].is_ascii_uppercase() {
+            out.push(b'_');
+            out.push(b[i].to_ascii_lowercase());
+            while i + 1 < b.len() && b[i + 1].is_ascii_uppercase() {
                 i += 1;
+                out.push(b[i].to_ascii_lowercase());
             }
+        } else {
+            out.push(b[i]);
         }
         i += 1;
     }
-    String::from_utf8_lossy(&s).into_owned()
+    String::from_utf8_lossy(&out).into_owned()
 }
 
-/// Mitsuba 3's upgrade of legacy texture offsets and scales: the floats
-/// `uoffset`, `voffset`, `uscale`, `vscale` become a `to_uv` transform that
-/// translates by the offset, then scales.
+/// Mitsuba 3's upgrade of legacy texture offsets and scales: `uoffset`,
+/// `voffset`, `uscale`, `vscale` become a `to_uv` transform that translates
+/// by the offset, then scales.
 fn upgrade_uv_floats(node: &mut Node) {
     const NAMES: [&str; 4] = ["uoffset", "voffset", "uscale", "vscale"];
-    let is_uv = |p: &Prop| NAMES.contains(&p.name.as_str()) && matches!(p.value, Value::Float(_));
+    let is_uv = |p: &Prop| NAMES.contains(&p.name.as_str()) && matches!(p.value, Value::Float(_) | Value::Integer(_));
     let Some(first) = node.props.iter().find(|p| is_uv(p)).map(|p| p.loc.clone()) else { return };
     let (mut offset, mut scale) = ([0.0f32; 2], [1.0f32; 2]);
     for p in node.props.iter().filter(|p| is_uv(p)) {
-        if let Value::Float(v) = p.value {
+        let v = match p.value {
+            Value::Float(v) => v,
+            Value::Integer(v) => v as f64,
+            _ => continue,
+        };
+        {
             match p.name.as_str() {
                 "uoffset" => offset[0] = v as f32,
                 "voffset" => offset[1] = v as f32,
