@@ -252,3 +252,34 @@ fn unsupported_features_are_named() {
     }
     assert_unsupported("    <shape type=\"sdfgrid\"/>\n", 7, 5, &["sdfgrid", "signed distance fields"]);
 }
+
+#[test]
+fn objects_declared_at_the_top_level_for_reference() {
+    // Mitsuba's documentation scenes declare an area emitter and a sampler
+    // at the top level with an id and <ref> them from a shape and a sensor.
+    let text = r#"<scene version="3.0.0">
+    <sampler type="independent" id="my_sampler"><integer name="sample_count" value="7"/></sampler>
+    <emitter type="area" id="light"><rgb name="radiance" value="2"/></emitter>
+    <sensor type="perspective">
+        <float name="fov" value="40"/>
+        <ref id="my_sampler"/>
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/></film>
+    </sensor>
+    <shape type="sphere"><ref id="light"/></shape>
+    <shape type="sphere"><float name="radius" value="0.5"/><ref id="light"/></shape>
+</scene>
+"#;
+    let path = std::env::temp_dir().join("snell-documents-declared.xml");
+    let scene = snell::load_str(&path, text, &LoadOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.sampler.sample_count, 7);
+    assert_eq!(scene.emitters.len(), 2);
+    assert!(scene.shapes.iter().all(|s| s.emitter.is_some()));
+    // A sensor takes only films and samplers by reference.
+    let bad = text.replace(r#"<ref id="my_sampler"/>"#, r#"<ref id="light"/>"#);
+    let e = match snell::load_str(&path, &bad, &LoadOptions::default()) {
+        Ok(_) => panic!("a sensor must not take an emitter"),
+        Err(e) => e,
+    };
+    assert_eq!(e.location.as_ref().map(|l| (l.line, l.col)), Some((6, 9)), "{e}");
+    assert!(e.message.contains("a sensor cannot take a reference to a <emitter>"), "{e}");
+}

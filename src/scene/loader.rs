@@ -188,6 +188,14 @@ impl Loader {
                     return Err(SceneError::at(&child.loc, "a <ref> may not appear directly inside <scene>"));
                 }
             };
+            // Declared at the top level only to be referenced by id (as
+            // Mitsuba allows): an area emitter that shapes <ref>, a film,
+            // sampler or filter that a sensor <ref>s.
+            let for_reference = matches!(node.kind, Kind::Film | Kind::Sampler | Kind::Rfilter)
+                || (node.kind == Kind::Emitter && node.plugin == "area");
+            if for_reference && node.id.is_some() {
+                continue;
+            }
             match node.kind {
                 Kind::Shape => self.shape(&node)?,
                 Kind::Bsdf => {
@@ -611,8 +619,19 @@ impl Loader {
         if !SENSORS.contains(&node.plugin.as_str()) {
             return Err(unknown_plugin(node, &SENSORS));
         }
-        let films = self.nested(&props, Kind::Film)?;
-        let samplers = self.nested(&props, Kind::Sampler)?;
+        let mut films = self.nested(&props, Kind::Film)?;
+        let mut samplers = self.nested(&props, Kind::Sampler)?;
+        for r in props.unnamed_refs() {
+            let target = self.resolve(r)?;
+            match target.kind {
+                Kind::Film => films.push(target),
+                Kind::Sampler => samplers.push(target),
+                k => {
+                    return Err(SceneError::at(&r.loc, format!("a sensor cannot take a reference to a <{}>", k.tag()))
+                        .with_help("a sensor takes one <film> and one <sampler>"));
+                }
+            }
+        }
         if films.len() > 1 || samplers.len() > 1 {
             return Err(SceneError::at(&node.loc, "a sensor takes at most one <film> and one <sampler>"));
         }

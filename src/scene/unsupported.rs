@@ -7,6 +7,7 @@
 //! | participating media | `<medium>`, `<phase>`, `<volume>` elements; `homogeneous`, `heterogeneous` media; `volpath`, `volpathmis`, `prbvolpath` integrators; `gridvolume`/`constvolume` volumes |
 //! | curves | `bsplinecurve`, `linearcurve` shapes |
 //! | signed distance fields | `sdfgrid` shape |
+//! | id aliases | `<alias id="…" as="…"/>` |
 
 use super::xml::Kind;
 
@@ -16,6 +17,7 @@ pub fn element(tag: &str) -> Option<&'static str> {
         "medium" => Some("participating media"),
         "phase" => Some("phase functions of participating media"),
         "volume" => Some("volume data of participating media"),
+        "alias" => Some("aliases of object ids"),
         _ => None,
     }
 }
