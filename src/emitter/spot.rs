@@ -20,8 +20,12 @@
 //! </emitter>
 //! ```
 
-use crate::spectrum::Emission;
-use glam::Vec3;
+use super::{EmissionSample, EmitterSample, point_light_sample};
+use crate::geometry::Ray;
+use crate::math::Frame;
+use crate::math::sampling::{square_to_uniform_cone, uniform_cone_pdf};
+use crate::spectrum::{Emission, Spectrum};
+use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub struct SpotLight {
@@ -64,6 +68,32 @@ impl SpotLight {
         } else {
             ((self.cutoff - cos_theta.clamp(-1.0, 1.0).acos()) * self.inv_transition).clamp(0.0, 1.0)
         }
+    }
+}
+
+impl SpotLight {
+    #[inline]
+    pub fn sample_direction<S: Spectrum>(&self, p: Vec3, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
+        point_light_sample(p, self.position, |d| self.falloff(d), || self.intensity.eval::<S>(wl))
+    }
+
+    /// A direction uniformly within the cone.
+    pub fn sample_ray<S: Spectrum>(&self, u_dir: Vec2, wl: &S::Wavelengths) -> Option<EmissionSample<S>> {
+        let d = Frame::from_normal(self.axis).to_world(square_to_uniform_cone(u_dir, self.cos_cutoff));
+        let falloff = self.falloff(d);
+        if falloff <= 0.0 {
+            return None;
+        }
+        let pdf_dir = uniform_cone_pdf(self.cos_cutoff);
+        Some(EmissionSample {
+            ray: Ray::new(self.position, d),
+            p: self.position,
+            n: Vec3::ZERO,
+            weight: self.intensity.eval::<S>(wl) * (falloff / pdf_dir),
+            position_weight: None,
+            pdf_pos: 1.0,
+            pdf_dir,
+        })
     }
 }
 

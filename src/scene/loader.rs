@@ -9,7 +9,7 @@ use super::xml::{self, Child, ChildTarget, Kind, Node};
 use super::Scene;
 use crate::bsdf::dispersion::DispersiveInterface;
 use crate::bsdf::{Bsdf, Conductor, Lobe, Dielectric, Diffuse, Plastic, Polarizer, Retarder, ThinDielectric, TwoSided};
-use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, PointLight, SpotLight};
+use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, EnvironmentMap, PointLight, SpotLight};
 use crate::film::{FilmSpec, Filter, FilterKind};
 use crate::geometry::accel::Accel;
 use crate::geometry::disk::Disk;
@@ -33,7 +33,7 @@ use std::sync::Arc;
 pub const SHAPES: [&str; 6] = ["rectangle", "cube", "disk", "sphere", "obj", "ply"];
 pub const BSDFS: [&str; 8] = ["conductor", "dielectric", "diffuse", "plastic", "polarizer", "retarder", "thindielectric", "twosided"];
 pub const TEXTURES: [&str; 2] = ["bitmap", "checkerboard"];
-pub const EMITTERS: [&str; 5] = ["area", "point", "spot", "constant", "directional"];
+pub const EMITTERS: [&str; 6] = ["area", "point", "spot", "constant", "directional", "envmap"];
 pub const SENSORS: [&str; 2] = ["perspective", "orthographic"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 3] = ["box", "tent", "gaussian"];
@@ -191,8 +191,12 @@ impl Loader {
                 return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic camera)")
                     .with_choices(&["perspective"]));
             }
-            if let Some(e) = self.emitters.iter().find(|e| matches!(e, Emitter::Constant(_) | Emitter::Directional(_))) {
-                let kind = if matches!(e, Emitter::Constant(_)) { "constant" } else { "directional" };
+            if let Some(e) = self.emitters.iter().find(|e| matches!(e, Emitter::Constant(_) | Emitter::Directional(_) | Emitter::EnvMap(_))) {
+                let kind = match e {
+                    Emitter::Constant(_) => "constant",
+                    Emitter::EnvMap(_) => "envmap",
+                    _ => "directional",
+                };
                 return Err(SceneError::at(loc, format!("ptracer cannot start light paths on a \"{kind}\" emitter; use the path integrator"))
                     .with_choices(&["area", "point", "spot"]));
             }
@@ -546,6 +550,18 @@ impl Loader {
                     .emission_opt("irradiance")?
                     .ok_or_else(|| SceneError::at(&node.loc, "directional emitter needs \"irradiance\""))?;
                 Emitter::Directional(DirectionalLight { direction, irradiance })
+            }
+            "envmap" => {
+                let filename = props.string_req("filename")?;
+                let scale = props.float_checked("scale", 1.0, |s| s.is_finite() && s >= 0.0, "a non-negative number")?;
+                let to_world = props.transform("to_world")?;
+                props.bool("mis_compensation", false)?;
+                let path = resolve_path(node, filename);
+                let loc = node.props.iter().find(|p| p.name == "filename").map_or(&node.loc, |p| &p.loc);
+                let (width, height, texels) = bitmap::read_image(&path, false).map_err(|e| SceneError::at(loc, e))?;
+                let map = EnvironmentMap::new(width, height, texels, scale, to_world)
+                    .map_err(|e| SceneError::at(loc, format!("{}: {e}", path.display())))?;
+                Emitter::EnvMap(Box::new(map))
             }
             _ => return Err(unknown_plugin(node, &EMITTERS)),
         };
