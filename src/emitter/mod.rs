@@ -25,6 +25,7 @@ pub mod constant;
 pub mod directional;
 pub mod envmap;
 pub mod point;
+pub mod projector;
 pub mod spot;
 
 pub use area::AreaLight;
@@ -32,12 +33,26 @@ pub use constant::ConstantLight;
 pub use directional::DirectionalLight;
 pub use envmap::EnvironmentMap;
 pub use point::PointLight;
+pub use projector::Projector;
 pub use spot::SpotLight;
 
 use crate::geometry::{Ray, SurfaceInteraction};
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;
+use crate::texture::Texture;
 use glam::{Vec2, Vec3};
+
+/// A texture of emitted light (radiance, irradiance) at `uv`, uplifted as an
+/// illuminant in spectral modes (a listed spectrum used as it is);
+/// unpolarized.
+#[inline]
+pub(crate) fn texture_illuminant<S: Spectrum>(tex: &Texture, uv: Vec2, wl: &S::Wavelengths) -> S {
+    match tex {
+        Texture::Constant(rgb, cache) => S::from_illuminant_cached(*rgb, cache, wl),
+        Texture::Spectral { rgb, spectrum } => S::from_function(*rgb, |l| spectrum.eval(l), wl).depolarize(),
+        _ => S::from_illuminant(tex.eval(uv), wl),
+    }
+}
 
 #[derive(Clone, Debug)]
 pub enum Emitter {
@@ -47,6 +62,7 @@ pub enum Emitter {
     Directional(DirectionalLight),
     Spot(SpotLight),
     EnvMap(Box<EnvironmentMap>),
+    Projector(Box<Projector>),
 }
 
 /// Where a ray met an emitter: a point on an emitting shape, or a direction
@@ -105,7 +121,7 @@ pub struct EmissionSample<S> {
 
 impl Emitter {
     pub fn is_delta(&self) -> bool {
-        matches!(self, Emitter::Point(_) | Emitter::Directional(_) | Emitter::Spot(_))
+        matches!(self, Emitter::Point(_) | Emitter::Directional(_) | Emitter::Spot(_) | Emitter::Projector(_))
     }
 
     /// Emitters at infinity (seen by rays that leave the scene).
@@ -118,12 +134,13 @@ impl Emitter {
     #[inline]
     pub fn sample_direction<S: Spectrum>(&self, scene: &Scene, p: Vec3, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
         match self {
-            Emitter::Area(a) => a.sample_direction(&scene.shapes[a.shape as usize], p, u, wl),
+            Emitter::Area(a) => a.sample_direction(scene, p, u, wl),
             Emitter::Point(e) => e.sample_direction(p, wl),
             Emitter::Spot(e) => e.sample_direction(p, wl),
             Emitter::Directional(e) => Some(e.sample_direction(wl)),
             Emitter::Constant(e) => Some(e.sample_direction(u, wl)),
             Emitter::EnvMap(e) => e.sample_direction(u, wl),
+            Emitter::Projector(e) => e.sample_direction(p, wl),
         }
     }
 
@@ -157,9 +174,10 @@ impl Emitter {
     /// scene's bounds; the loader refuses them with `ptracer`).
     pub fn sample_ray<S: Spectrum>(&self, scene: &Scene, u_pos: Vec2, u_dir: Vec2, wl: &S::Wavelengths) -> Option<EmissionSample<S>> {
         match self {
-            Emitter::Area(a) => a.sample_ray(&scene.shapes[a.shape as usize], u_pos, u_dir, wl),
+            Emitter::Area(a) => a.sample_ray(scene, u_pos, u_dir, wl),
             Emitter::Point(e) => Some(e.sample_ray(u_dir, wl)),
             Emitter::Spot(e) => e.sample_ray(u_dir, wl),
+            Emitter::Projector(e) => e.sample_ray(u_dir, wl),
             Emitter::Constant(_) | Emitter::Directional(_) | Emitter::EnvMap(_) => None,
         }
     }
@@ -172,7 +190,7 @@ pub(crate) fn point_light_sample<S: Spectrum>(
     p: Vec3,
     position: Vec3,
     falloff: impl Fn(Vec3) -> f32,
-    intensity: impl FnOnce() -> S,
+    intensity: impl FnOnce(Vec3) -> S,
 ) -> Option<EmitterSample<S>> {
     let v = position - p;
     let dist2 = v.length_squared();
@@ -180,9 +198,10 @@ pub(crate) fn point_light_sample<S: Spectrum>(
         return None;
     }
     let dist = dist2.sqrt();
-    let f = falloff(-v / dist);
+    let emitted = -v / dist;
+    let f = falloff(emitted);
     if f <= 0.0 {
         return None;
     }
-    Some(EmitterSample { d: v / dist, dist, p: Some(position), n: Vec3::ZERO, weight: intensity() * (f / dist2), pdf: 0.0, delta: true })
+    Some(EmitterSample { d: v / dist, dist, p: Some(position), n: Vec3::ZERO, weight: intensity(emitted) * (f / dist2), pdf: 0.0, delta: true })
 }

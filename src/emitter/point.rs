@@ -32,7 +32,7 @@ pub struct PointLight {
 impl PointLight {
     #[inline]
     pub fn sample_direction<S: Spectrum>(&self, p: Vec3, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
-        point_light_sample(p, self.position, |_| 1.0, || self.intensity.eval::<S>(wl))
+        point_light_sample(p, self.position, |_| 1.0, |_| self.intensity.eval::<S>(wl))
     }
 
     /// A direction uniformly over the sphere.
