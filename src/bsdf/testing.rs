@@ -29,7 +29,7 @@ pub fn incident(theta: f32, phi: f32) -> Vec3 {
 
 /// Regularised lower incomplete gamma P(a, x) (Numerical Recipes' split
 /// between the series and the continued fraction).
-fn gamma_p(a: f64, x: f64) -> f64 {
+pub(crate) fn gamma_p(a: f64, x: f64) -> f64 {
     fn ln_gamma(x: f64) -> f64 {
         // Lanczos approximation (g = 7, n = 9).
         const C: [f64; 9] = [

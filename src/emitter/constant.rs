@@ -11,9 +11,24 @@
 //! <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
 //! ```
 
-use crate::spectrum::Emission;
+use super::EmitterSample;
+use crate::math::INV_FOUR_PI;
+use crate::math::sampling::square_to_uniform_sphere;
+use crate::spectrum::{Emission, Spectrum};
+use glam::{Vec2, Vec3};
+
+/// The solid-angle density of every direction.
+pub const PDF: f32 = INV_FOUR_PI;
 
 #[derive(Clone, Debug)]
 pub struct ConstantLight {
     pub radiance: Emission,
+}
+
+impl ConstantLight {
+    #[inline]
+    pub fn sample_direction<S: Spectrum>(&self, u: Vec2, wl: &S::Wavelengths) -> EmitterSample<S> {
+        let d = square_to_uniform_sphere(u);
+        EmitterSample { d, dist: f32::INFINITY, p: None, n: Vec3::ZERO, weight: self.radiance.eval::<S>(wl) / PDF, pdf: PDF, delta: false }
+    }
 }

@@ -16,7 +16,8 @@
 //! </emitter>
 //! ```
 
-use crate::spectrum::Emission;
+use super::EmitterSample;
+use crate::spectrum::{Emission, Spectrum};
 use glam::Vec3;
 
 #[derive(Clone, Debug)]
@@ -24,4 +25,19 @@ pub struct DirectionalLight {
     /// Unit direction the light travels in.
     pub direction: Vec3,
     pub irradiance: Emission,
+}
+
+impl DirectionalLight {
+    #[inline]
+    pub fn sample_direction<S: Spectrum>(&self, wl: &S::Wavelengths) -> EmitterSample<S> {
+        EmitterSample {
+            d: -self.direction,
+            dist: f32::INFINITY,
+            p: None,
+            n: Vec3::ZERO,
+            weight: self.irradiance.eval::<S>(wl),
+            pdf: 0.0,
+            delta: true,
+        }
+    }
 }

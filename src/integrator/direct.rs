@@ -46,7 +46,7 @@ impl Direct {
         let hit = if self.hide_emitters { scene.intersect_hiding_emitters(&ray) } else { scene.intersect(&ray) };
         let Some(si) = hit else {
             if !self.hide_emitters {
-                if let Some(env) = scene.environment_radiance::<S>(wl) {
+                if let Some(env) = scene.environment_radiance::<S>(ray.d, wl) {
                     result += env;
                 }
             }
@@ -93,8 +93,8 @@ impl Direct {
                     Some(le) => (le, if delta { 0.0 } else { scene.pdf_emitter_hit(si.p, &hit) }),
                     None => continue,
                 },
-                None => match scene.environment_radiance::<S>(wl) {
-                    Some(le) => (le, if delta { 0.0 } else { scene.pdf_environment() }),
+                None => match scene.environment_radiance::<S>(d, wl) {
+                    Some(le) => (le, if delta { 0.0 } else { scene.pdf_environment(si.p, d) }),
                     None => continue,
                 },
             };

@@ -49,8 +49,8 @@ impl PathTracer {
             let visible = !(self.hide_emitters && depth == 0);
             let Some(si) = hit else {
                 if visible {
-                    if let Some(env) = scene.environment_radiance::<S>(wl) {
-                        let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_environment()) };
+                    if let Some(env) = scene.environment_radiance::<S>(ray.d, wl) {
+                        let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_environment(prev_p, ray.d)) };
                         result += throughput * env * w;
                     }
                 }

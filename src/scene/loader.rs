@@ -9,7 +9,7 @@ use super::xml::{self, Child, ChildTarget, Kind, Node};
 use super::Scene;
 use crate::bsdf::dispersion::DispersiveInterface;
 use crate::bsdf::{Bsdf, Conductor, Lobe, Dielectric, Diffuse, Plastic, Polarizer, Retarder, ThinDielectric, TwoSided};
-use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, PointLight, SpotLight};
+use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, EnvironmentMap, PointLight, Projector, SpotLight};
 use crate::film::{FilmSpec, Filter, FilterKind};
 use crate::geometry::accel::Accel;
 use crate::geometry::disk::Disk;
@@ -33,7 +33,7 @@ use std::sync::Arc;
 pub const SHAPES: [&str; 6] = ["rectangle", "cube", "disk", "sphere", "obj", "ply"];
 pub const BSDFS: [&str; 8] = ["conductor", "dielectric", "diffuse", "plastic", "polarizer", "retarder", "thindielectric", "twosided"];
 pub const TEXTURES: [&str; 2] = ["bitmap", "checkerboard"];
-pub const EMITTERS: [&str; 5] = ["area", "point", "spot", "constant", "directional"];
+pub const EMITTERS: [&str; 7] = ["area", "point", "spot", "constant", "directional", "envmap", "projector"];
 pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
@@ -242,10 +242,14 @@ impl Loader {
                 return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic camera)")
                     .with_choices(&["perspective"]));
             }
-            if let Some(e) = self.emitters.iter().find(|e| matches!(e, Emitter::Constant(_) | Emitter::Directional(_))) {
-                let kind = if matches!(e, Emitter::Constant(_)) { "constant" } else { "directional" };
+            if let Some(e) = self.emitters.iter().find(|e| matches!(e, Emitter::Constant(_) | Emitter::Directional(_) | Emitter::EnvMap(_))) {
+                let kind = match e {
+                    Emitter::Constant(_) => "constant",
+                    Emitter::EnvMap(_) => "envmap",
+                    _ => "directional",
+                };
                 return Err(SceneError::at(loc, format!("ptracer cannot start light paths on a \"{kind}\" emitter; use the path integrator"))
-                    .with_choices(&["area", "point", "spot"]));
+                    .with_choices(&["area", "point", "spot", "projector"]));
             }
         }
         let accel = Accel::build(&self.shapes);
@@ -556,9 +560,15 @@ impl Loader {
                 .with_choices(&["area"]));
         }
         let props = Props::new(node);
-        let radiance = props.emission_opt("radiance")?.ok_or_else(|| SceneError::at(&node.loc, "area emitter needs \"radiance\""))?;
+        let (radiance, texture) = match props.emission_opt("radiance")? {
+            Some(e) => (e, None),
+            None if props.child_named("radiance").is_some() => {
+                (Emission::rgb(Rgb::BLACK), Some(self.texture_input(&props, "radiance", Rgb::BLACK)?))
+            }
+            None => return Err(SceneError::at(&node.loc, "area emitter needs \"radiance\"")),
+        };
         props.finish()?;
-        self.emitters.push(Emitter::Area(AreaLight { shape, radiance }));
+        self.emitters.push(Emitter::Area(AreaLight { shape, radiance, texture }));
         Ok(self.emitters.len() as u32 - 1)
     }
 
@@ -585,7 +595,11 @@ impl Loader {
                     props.emission_opt("intensity")?.ok_or_else(|| SceneError::at(&node.loc, "spot emitter needs \"intensity\""))?;
                 let cutoff = props.float_checked("cutoff_angle", 20.0, |a| a > 0.0 && a <= 90.0, "an angle in (0, 90] degrees")?;
                 let beam = props.float_checked("beam_width", cutoff * 0.75, |b| b > 0.0 && b <= cutoff, "an angle in (0, cutoff_angle] degrees")?;
-                Emitter::Spot(SpotLight::new(to_world.point(Vec3::ZERO), axis, intensity, cutoff, beam))
+                let spot = SpotLight::new(to_world.point(Vec3::ZERO), axis, intensity, cutoff, beam);
+                match props.child_named("texture") {
+                    Some(_) => Emitter::Spot(spot.with_texture(self.texture_input(&props, "texture", Rgb::WHITE)?, to_world)),
+                    None => Emitter::Spot(spot),
+                }
             }
             "constant" => Emitter::Constant(ConstantLight { radiance: props.emission_opt("radiance")?.unwrap_or(Emission::rgb(Rgb::WHITE)) }),
             "directional" => {
@@ -598,6 +612,48 @@ impl Loader {
                     .emission_opt("irradiance")?
                     .ok_or_else(|| SceneError::at(&node.loc, "directional emitter needs \"irradiance\""))?;
                 Emitter::Directional(DirectionalLight { direction, irradiance })
+            }
+            "projector" => {
+                let to_world = props.transform("to_world")?;
+                if to_world.vector(Vec3::Z).normalize_or_zero() == Vec3::ZERO {
+                    return Err(SceneError::at(&node.loc, "projector's to_world collapses its axis"));
+                }
+                let irradiance = self.texture_input(&props, "irradiance", Rgb::WHITE)?;
+                let scale = props.float_checked("scale", 1.0, |s| s.is_finite() && s >= 0.0, "a non-negative number")?;
+                let aspect = match &irradiance {
+                    Texture::Bitmap(b) => b.width as f32 / b.height as f32,
+                    _ => 1.0,
+                };
+                let fov_x = match props.float_opt("fov")? {
+                    Some(_) => {
+                        let fov = props.float_checked("fov", f32::NAN, |f| f > 0.0 && f < 180.0, "an angle in (0, 180) degrees")?;
+                        let axis = props.choice("fov_axis", "x", &["x", "y", "smaller", "larger", "diagonal"])?;
+                        horizontal_fov(fov, axis, aspect)
+                    }
+                    None => {
+                        // Mitsuba's default: a 50 mm lens on 35 mm film, measured on the diagonal.
+                        let text = props.string_opt("focal_length")?.unwrap_or("50mm");
+                        let mm = text.trim().trim_end_matches("mm").trim().parse::<f32>().ok().filter(|f| *f > 0.0 && f.is_finite());
+                        let Some(mm) = mm else {
+                            return Err(props.error_at("focal_length", format!("focal_length must be a length like \"50mm\", not \"{text}\"")));
+                        };
+                        let diagonal = 2.0 * ((36.0f32 * 36.0 + 24.0 * 24.0).sqrt() / (2.0 * mm)).atan().to_degrees();
+                        horizontal_fov(diagonal, "diagonal", aspect)
+                    }
+                };
+                Emitter::Projector(Box::new(Projector::new(to_world, irradiance, scale, fov_x, aspect)))
+            }
+            "envmap" => {
+                let filename = props.string_req("filename")?;
+                let scale = props.float_checked("scale", 1.0, |s| s.is_finite() && s >= 0.0, "a non-negative number")?;
+                let to_world = props.transform("to_world")?;
+                props.bool("mis_compensation", false)?;
+                let path = resolve_path(node, filename);
+                let loc = node.props.iter().find(|p| p.name == "filename").map_or(&node.loc, |p| &p.loc);
+                let (width, height, texels) = bitmap::read_image(&path, false).map_err(|e| SceneError::at(loc, e))?;
+                let map = EnvironmentMap::new(width, height, texels, scale, to_world)
+                    .map_err(|e| SceneError::at(loc, format!("{}: {e}", path.display())))?;
+                Emitter::EnvMap(Box::new(map))
             }
             _ => return Err(unknown_plugin(node, &EMITTERS)),
         };

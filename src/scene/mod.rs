@@ -17,49 +17,20 @@ pub use error::{Location, SceneError};
 pub use loader::{LoadOptions, load_file, load_str};
 
 use crate::bsdf::Bsdf;
-use crate::emitter::{Emitter, EmitterSample};
+use crate::emitter::{Arrival, EmitterSample};
 use crate::film::FilmSpec;
 use crate::geometry::accel::Accel;
 use crate::geometry::ray::offset_origin;
 use crate::geometry::{Ray, Shape, SurfaceInteraction};
 use crate::integrator::Integrator;
-use crate::math::sampling::{square_to_cosine_hemisphere, square_to_uniform_cone, square_to_uniform_sphere, uniform_cone_pdf};
-use crate::math::{Frame, PI};
-use crate::math::{INV_FOUR_PI, SHADOW_EPSILON};
+use crate::emitter::Emitter;
+use crate::math::SHADOW_EPSILON;
 use crate::sampler::SamplerSpec;
 use crate::sensor::Camera;
 use crate::spectrum::Spectrum;
 use glam::{Vec2, Vec3};
 
-/// Emitter sample of a light at the single point `position` seen from `p`:
-/// `intensity` times `falloff(direction of emission)` over the squared distance.
-fn point_light_sample<S: Spectrum>(p: Vec3, position: Vec3, falloff: impl Fn(Vec3) -> f32, intensity: S) -> Option<EmitterSample<S>> {
-    let v = position - p;
-    let dist2 = v.length_squared();
-    if dist2 <= 0.0 {
-        return None;
-    }
-    let dist = dist2.sqrt();
-    let f = falloff(-v / dist);
-    if f <= 0.0 {
-        return None;
-    }
-    Some(EmitterSample { d: v / dist, dist, p: Some(position), n: Vec3::ZERO, weight: intensity * (f / dist2), pdf: 0.0, delta: true })
-}
-
-/// The start of a light path.
-pub struct EmissionSample<S> {
-    pub ray: Ray,
-    /// The emitting point and its (shading) normal (zero for point lights).
-    pub p: Vec3,
-    pub n: Vec3,
-    /// Emitted radiance (or intensity) times cosine over the joint density
-    /// of point, direction and emitter choice: the light path's throughput.
-    pub weight: S,
-    /// For area lights: Le / (area density · selection), to connect the
-    /// emitting point itself to the camera (emitters seen directly).
-    pub position_weight: Option<S>,
-}
+pub use crate::emitter::EmissionSample;
 
 pub struct Scene {
     pub shapes: Vec<Shape>,
@@ -111,92 +82,61 @@ impl Scene {
     }
 
     /// Emitted radiance from the surface at `si` back along the ray (zero
-    /// from an emitter's back side).
+    /// from an emitter's back side); `None` if the shape does not emit.
     #[inline]
     pub fn emitted<S: Spectrum>(&self, si: &SurfaceInteraction, wl: &S::Wavelengths) -> Option<S> {
         let e = self.shapes[si.shape as usize].emitter?;
-        match &self.emitters[e as usize] {
-            Emitter::Area(a) => Some(a.eval(si.frame.n, si.frame.to_world(si.wi)).map_or(S::zero(), |le| le.eval(wl))),
-            _ => None,
-        }
+        Some(self.emitters[e as usize].eval(Arrival::Surface(si), wl))
     }
 
-    /// Radiance arriving from the environment along direction `d` (a ray that escaped).
+    /// Radiance arriving from the environment along a ray that escaped
+    /// travelling in the unit direction `d`; `None` without an environment.
     #[inline]
-    pub fn environment_radiance<S: Spectrum>(&self, wl: &S::Wavelengths) -> Option<S> {
-        match &self.emitters[self.environment? as usize] {
-            Emitter::Constant(c) => Some(c.radiance.eval(wl)),
-            _ => None,
-        }
+    pub fn environment_radiance<S: Spectrum>(&self, d: Vec3, wl: &S::Wavelengths) -> Option<S> {
+        Some(self.emitters[self.environment? as usize].eval(Arrival::Escaped(d), wl))
     }
 
+    /// Picks an emitter for `u` in [0, 1): its index, the probability of
+    /// that choice, and `u` re-scaled to [0, 1) within the choice (uniform).
     #[inline]
-    fn selection_pmf(&self) -> f32 {
+    pub fn select_emitter(&self, u: f32) -> Option<(usize, f32, f32)> {
+        let n = self.emitters.len();
+        if n == 0 {
+            return None;
+        }
+        let scaled = u * n as f32;
+        let index = (scaled as usize).min(n - 1);
+        Some((index, self.emitter_pmf(index), (scaled - index as f32).min(1.0 - f32::EPSILON)))
+    }
+
+    /// The probability with which [`Scene::select_emitter`] picks emitter `index`.
+    #[inline]
+    pub fn emitter_pmf(&self, _index: usize) -> f32 {
         1.0 / self.emitters.len() as f32
     }
 
     /// Solid-angle density with which emitter sampling from `p` would pick
     /// the area-light point `hit` (selection included).
     pub fn pdf_emitter_hit(&self, p: Vec3, hit: &SurfaceInteraction) -> f32 {
-        let shape = &self.shapes[hit.shape as usize];
-        if shape.emitter.is_none() {
-            return 0.0;
-        }
-        shape.pdf_direction(p, hit.p, hit.n) * self.selection_pmf()
+        let Some(e) = self.shapes[hit.shape as usize].emitter else { return 0.0 };
+        self.emitters[e as usize].pdf_direction(self, p, Arrival::Surface(hit)) * self.emitter_pmf(e as usize)
     }
 
-    /// Density of sampling the environment in any direction (selection included).
-    pub fn pdf_environment(&self) -> f32 {
-        if self.environment.is_some() { INV_FOUR_PI * self.selection_pmf() } else { 0.0 }
+    /// Density with which emitter sampling from `p` would pick the
+    /// environment in the unit direction `d` (selection included).
+    pub fn pdf_environment(&self, p: Vec3, d: Vec3) -> f32 {
+        let Some(e) = self.environment else { return 0.0 };
+        self.emitters[e as usize].pdf_direction(self, p, Arrival::Escaped(d)) * self.emitter_pmf(e as usize)
     }
 
-    /// Picks an emitter uniformly, then a direction towards it, and tests
-    /// visibility with a shadow ray. `None` if nothing arrives.
+    /// Picks an emitter, then a direction towards it, and tests visibility
+    /// with a shadow ray. `None` if nothing arrives. Weight and pdf include
+    /// the selection.
     pub fn sample_emitter<S: Spectrum>(&self, si: &SurfaceInteraction, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
-        let n = self.emitters.len();
-        if n == 0 {
-            return None;
-        }
-        let scaled = u.x * n as f32;
-        let index = (scaled as usize).min(n - 1);
-        let u = Vec2::new((scaled - index as f32).min(1.0 - f32::EPSILON), u.y);
-        let pmf = self.selection_pmf();
-        let sample = match &self.emitters[index] {
-            Emitter::Area(a) => {
-                let ds = self.shapes[a.shape as usize].sample_direction(si.p, u)?;
-                // Only the front side emits.
-                let radiance = a.eval(ds.sh_n, -ds.d)?;
-                if ds.pdf <= 0.0 || !ds.pdf.is_finite() || radiance.is_zero() {
-                    return None;
-                }
-                let pdf = ds.pdf * pmf;
-                EmitterSample {
-                    d: ds.d,
-                    dist: ds.dist,
-                    p: Some(ds.p),
-                    n: ds.n,
-                    weight: radiance.eval::<S>(wl) / pdf,
-                    pdf,
-                    delta: false,
-                }
-            }
-            Emitter::Point(pl) => point_light_sample(si.p, pl.position, |_| 1.0, pl.intensity.eval::<S>(wl) / pmf)?,
-            Emitter::Spot(sl) => point_light_sample(si.p, sl.position, |d| sl.falloff(d), sl.intensity.eval::<S>(wl) / pmf)?,
-            Emitter::Directional(dl) => EmitterSample {
-                d: -dl.direction,
-                dist: f32::INFINITY,
-                p: None,
-                n: Vec3::ZERO,
-                weight: dl.irradiance.eval::<S>(wl) / pmf,
-                pdf: 0.0,
-                delta: true,
-            },
-            Emitter::Constant(c) => {
-                let d = square_to_uniform_sphere(u);
-                let pdf = INV_FOUR_PI * pmf;
-                EmitterSample { d, dist: f32::INFINITY, p: None, n: Vec3::ZERO, weight: c.radiance.eval::<S>(wl) / pdf, pdf, delta: false }
-            }
-        };
+        let (index, pmf, ux) = self.select_emitter(u.x)?;
+        let mut sample = self.emitters[index].sample_direction::<S>(self, si.p, Vec2::new(ux, u.y), wl)?;
+        sample.weight = sample.weight / pmf;
+        sample.pdf *= pmf;
         // Shadow ray, stopping just short of the emitter's surface.
         let o = si.spawn_origin(sample.d);
         let ray = match sample.p {
@@ -217,61 +157,14 @@ impl Scene {
         Some(sample)
     }
 
-    /// Starts a light path (particle tracing): picks an emitter uniformly, a
-    /// point on it and a direction leaving it. `None` for emitters a light
-    /// path cannot start from (the environment and directional lights, which
-    /// would need the scene's bounds; the loader refuses them with `ptracer`).
+    /// Starts a light path (particle tracing): picks an emitter, a point on
+    /// it and a direction leaving it ([`Emitter::sample_ray`]); weights
+    /// include the selection. `None` for emitters a light path cannot start from.
     pub fn sample_emission<S: Spectrum>(&self, u_pick: f32, u_pos: Vec2, u_dir: Vec2, wl: &S::Wavelengths) -> Option<EmissionSample<S>> {
-        let n = self.emitters.len();
-        if n == 0 {
-            return None;
-        }
-        let index = ((u_pick * n as f32) as usize).min(n - 1);
-        let pmf = self.selection_pmf();
-        match &self.emitters[index] {
-            Emitter::Area(a) => {
-                let ps = self.shapes[a.shape as usize].sample_position(u_pos)?;
-                if !(ps.pdf_area > 0.0) || a.radiance.is_zero() {
-                    return None;
-                }
-                // Diffuse emission: cosine-weighted about the front side, so
-                // Le·cos/pdf = Le·π.
-                let local = square_to_cosine_hemisphere(u_dir);
-                let d = Frame::from_normal(ps.sh_n).to_world(local);
-                let position_weight = a.radiance.eval::<S>(wl) / (ps.pdf_area * pmf);
-                Some(EmissionSample {
-                    ray: Ray::new(offset_origin(ps.p, ps.n, d), d),
-                    p: ps.p,
-                    n: ps.sh_n,
-                    weight: position_weight * PI,
-                    position_weight: Some(position_weight),
-                })
-            }
-            Emitter::Point(pl) => {
-                let d = square_to_uniform_sphere(u_dir);
-                Some(EmissionSample {
-                    ray: Ray::new(pl.position, d),
-                    p: pl.position,
-                    n: Vec3::ZERO,
-                    weight: pl.intensity.eval::<S>(wl) * (4.0 * PI / pmf),
-                    position_weight: None,
-                })
-            }
-            Emitter::Spot(sl) => {
-                let d = Frame::from_normal(sl.axis).to_world(square_to_uniform_cone(u_dir, sl.cos_cutoff));
-                let falloff = sl.falloff(d);
-                if falloff <= 0.0 {
-                    return None;
-                }
-                Some(EmissionSample {
-                    ray: Ray::new(sl.position, d),
-                    p: sl.position,
-                    n: Vec3::ZERO,
-                    weight: sl.intensity.eval::<S>(wl) * (falloff / (uniform_cone_pdf(sl.cos_cutoff) * pmf)),
-                    position_weight: None,
-                })
-            }
-            Emitter::Constant(_) | Emitter::Directional(_) => None,
-        }
+        let (index, pmf, _) = self.select_emitter(u_pick)?;
+        let mut em = self.emitters[index].sample_ray::<S>(self, u_pos, u_dir, wl)?;
+        em.weight = em.weight / pmf;
+        em.position_weight = em.position_weight.map(|w| w / pmf);
+        Some(em)
     }
 }

@@ -70,16 +70,71 @@ pub fn read_image(path: &Path, raw: bool) -> Result<(usize, usize, Vec<Rgb>), St
         }
         return Ok((w, h, px));
     }
+    if ext == "pfm" {
+        return read_pfm(path);
+    }
     let img = image::ImageReader::open(path)
         .map_err(|e| format!("cannot open image {}: {e}", path.display()))?
         .with_guessed_format()
         .map_err(|e| format!("cannot read image {}: {e}", path.display()))?
         .decode()
         .map_err(|e| format!("cannot decode image {}: {e}", path.display()))?;
+    // Floating-point images (Radiance RGBE) are linear already.
+    let float = matches!(img.color(), image::ColorType::Rgb32F | image::ColorType::Rgba32F);
     let rgb = img.to_rgb32f();
     let (w, h) = (rgb.width() as usize, rgb.height() as usize);
-    let decode = |v: f32| if raw { v } else { srgb_to_linear(v) };
+    let decode = |v: f32| if raw || float { v } else { srgb_to_linear(v) };
     let px = rgb.pixels().map(|p| Rgb::new(decode(p[0]), decode(p[1]), decode(p[2]))).collect();
+    Ok((w, h, px))
+}
+
+/// Reads a Portable Float Map (`PF` colour or `Pf` greyscale; the scale's
+/// sign gives the byte order; rows stored bottom to top) as linear RGB.
+fn read_pfm(path: &Path) -> Result<(usize, usize, Vec<Rgb>), String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot open image {}: {e}", path.display()))?;
+    let bad = |what: &str| format!("cannot read PFM image {}: {what}", path.display());
+    // Header: three whitespace-separated tokens after the magic, then one whitespace byte.
+    let mut tokens = Vec::new();
+    let mut pos = 0;
+    while tokens.len() < 4 {
+        while pos < bytes.len() && bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        let start = pos;
+        while pos < bytes.len() && !bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        if start == pos || pos >= bytes.len() {
+            return Err(bad("truncated header"));
+        }
+        tokens.push(std::str::from_utf8(&bytes[start..pos]).map_err(|_| bad("header is not text"))?);
+    }
+    pos += 1;
+    let channels = match tokens[0] {
+        "PF" => 3,
+        "Pf" => 1,
+        _ => return Err(bad("not a PFM file (it must start with PF or Pf)")),
+    };
+    let (w, h, scale) = match (tokens[1].parse::<usize>(), tokens[2].parse::<usize>(), tokens[3].parse::<f32>()) {
+        (Ok(w), Ok(h), Ok(s)) if w > 0 && h > 0 && s != 0.0 && s.is_finite() => (w, h, s),
+        _ => return Err(bad("invalid width, height or scale")),
+    };
+    let need = w.checked_mul(h).and_then(|n| n.checked_mul(4 * channels)).ok_or_else(|| bad("image too large"))?;
+    let data = bytes.get(pos..pos + need).ok_or_else(|| bad("truncated pixel data"))?;
+    let value = |k: usize| {
+        let b = [data[4 * k], data[4 * k + 1], data[4 * k + 2], data[4 * k + 3]];
+        if scale < 0.0 { f32::from_le_bytes(b) } else { f32::from_be_bytes(b) }
+    };
+    let mut px = vec![Rgb::BLACK; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let k = ((h - 1 - y) * w + x) * channels;
+            px[y * w + x] = if channels == 3 { Rgb::new(value(k), value(k + 1), value(k + 2)) } else { Rgb::new(value(k), value(k), value(k)) };
+        }
+    }
+    if px.iter().any(|p| !p.is_finite()) {
+        return Err(format!("PFM image {} contains NaN or infinite values", path.display()));
+    }
     Ok((w, h, px))
 }
 
@@ -160,5 +215,32 @@ mod tests {
         assert_eq!(b.eval(Vec2::new(0.25, 0.5)), Rgb::BLACK);
         assert_eq!(b.eval(Vec2::new(0.75, 0.5)), Rgb::WHITE);
         assert!((b.eval(Vec2::new(0.5, 0.5))[0] - 0.5).abs() < 1e-6);
+    }
+}
+
+#[cfg(test)]
+mod pfm_tests {
+    use super::*;
+
+    #[test]
+    fn pfm_rows_are_stored_bottom_up_in_either_byte_order() {
+        let dir = std::env::temp_dir().join(format!("snell-pfm-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // 2×2 colour image; stored rows: bottom (1, 2), then top (3, 4).
+        for (scale, le) in [("-1.0", true), ("1.0", false)] {
+            let mut bytes = format!("PF\n2 2\n{scale}\n").into_bytes();
+            for v in [1.0f32, 1.0, 1.0, 2.0, 2.0, 2.0, 3.0, 3.0, 3.0, 4.0, 4.0, 4.0] {
+                bytes.extend(if le { v.to_le_bytes() } else { v.to_be_bytes() });
+            }
+            let path = dir.join(format!("t{le}.pfm"));
+            std::fs::write(&path, &bytes).unwrap();
+            let (w, h, px) = read_image(&path, false).unwrap();
+            assert_eq!((w, h), (2, 2));
+            assert_eq!(px.iter().map(|p| p[0]).collect::<Vec<_>>(), vec![3.0, 4.0, 1.0, 2.0]);
+            // Truncated data is an error, not a panic.
+            std::fs::write(&path, &bytes[..bytes.len() - 3]).unwrap();
+            assert!(read_image(&path, false).unwrap_err().contains("truncated"));
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
