@@ -15,7 +15,7 @@ pub struct RawMesh {
 }
 
 impl RawMesh {
-    fn validate(self) -> Result<RawMesh, String> {
+    pub(crate) fn validate(self) -> Result<RawMesh, String> {
         let n = self.positions.len() as u32;
         if self.triangles.is_empty() {
             return Err("the mesh has no faces".into());

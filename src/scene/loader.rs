@@ -12,9 +12,11 @@ use crate::bsdf::{Bsdf, Conductor, Lobe, Dielectric, Diffuse, Plastic, Polarizer
 use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, PointLight, SpotLight};
 use crate::film::{FilmSpec, Filter, FilterKind};
 use crate::geometry::accel::Accel;
+use crate::geometry::cylinder::Cylinder;
 use crate::geometry::disk::Disk;
 use crate::geometry::mesh::Mesh;
 use crate::geometry::mesh_io;
+use crate::geometry::serialized;
 use crate::geometry::sphere::Sphere;
 use crate::geometry::{Shape, ShapeGeometry};
 use crate::integrator::{Direct, Integrator, ParticleTracer, PathTracer};
@@ -30,7 +32,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-pub const SHAPES: [&str; 6] = ["rectangle", "cube", "disk", "sphere", "obj", "ply"];
+pub const SHAPES: [&str; 10] = ["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "shapegroup", "instance"];
 pub const BSDFS: [&str; 8] = ["conductor", "dielectric", "diffuse", "plastic", "polarizer", "retarder", "thindielectric", "twosided"];
 pub const TEXTURES: [&str; 2] = ["bitmap", "checkerboard"];
 pub const EMITTERS: [&str; 5] = ["area", "point", "spot", "constant", "directional"];
@@ -69,6 +71,15 @@ struct Loader {
     shapes: Vec<Shape>,
     emitters: Vec<Emitter>,
     environment: Option<u32>,
+    /// Shapes traced directly (the others belong to shape groups).
+    top_shapes: Vec<u32>,
+    /// Members (shape indices) of each `shapegroup`, its index by node.
+    groups: Vec<Vec<u32>>,
+    group_index: HashMap<*const Node, u32>,
+    /// `instance`s: group-to-world transform and group.
+    instances: Vec<(Transform, u32)>,
+    /// Building the members of a shape group.
+    in_group: bool,
 }
 
 fn collect_ids(node: &Node, ids: &mut HashMap<String, Arc<Node>>) -> Result<()> {
@@ -105,7 +116,19 @@ impl Loader {
     fn new(root: &Node) -> Result<Loader> {
         let mut ids = HashMap::new();
         collect_ids(root, &mut ids)?;
-        Ok(Loader { ids, bsdf_cache: HashMap::new(), bsdfs: vec![], shapes: vec![], emitters: vec![], environment: None })
+        Ok(Loader {
+            ids,
+            bsdf_cache: HashMap::new(),
+            bsdfs: vec![],
+            shapes: vec![],
+            emitters: vec![],
+            environment: None,
+            top_shapes: vec![],
+            groups: vec![],
+            group_index: HashMap::new(),
+            instances: vec![],
+            in_group: false,
+        })
     }
 
     fn resolve(&self, child: &Child) -> Result<Arc<Node>> {
@@ -197,7 +220,7 @@ impl Loader {
                     .with_choices(&["area", "point", "spot"]));
             }
         }
-        let accel = Accel::build(&self.shapes);
+        let accel = Accel::build_instanced(&self.shapes, &self.top_shapes, &self.groups, &self.instances);
         Ok(Scene {
             shapes: self.shapes,
             bsdfs: self.bsdfs,
@@ -215,6 +238,17 @@ impl Loader {
     // ---------------------------------------------------------------- shapes
 
     fn shape(&mut self, node: &Arc<Node>) -> Result<()> {
+        match node.plugin.as_str() {
+            "shapegroup" if self.in_group => {
+                return Err(SceneError::at(&node.loc, "a shapegroup cannot contain another shapegroup (Mitsuba does not nest them)"));
+            }
+            "instance" if self.in_group => {
+                return Err(SceneError::at(&node.loc, "a shapegroup cannot contain an instance (Mitsuba does not nest instancing)"));
+            }
+            "shapegroup" => return self.shapegroup(node).map(|_| ()),
+            "instance" => return self.instance(node),
+            _ => {}
+        }
         let props = Props::new(node);
         let to_world = props.transform("to_world")?;
         let flip = props.bool("flip_normals", false)?;
@@ -223,7 +257,17 @@ impl Loader {
             "cube" => ShapeGeometry::Mesh(Mesh::cube(&to_world, flip)),
             "disk" => ShapeGeometry::Disk(Disk::new(to_world, flip)),
             "sphere" => ShapeGeometry::Sphere(self.sphere(&props, &to_world, flip)?),
-            "obj" | "ply" => ShapeGeometry::Mesh(self.mesh_file(&props, &to_world, flip)?),
+            "cylinder" => {
+                let p0 = props.vec3("p0", Vec3::ZERO)?;
+                let p1 = props.vec3("p1", Vec3::Z)?;
+                let radius = props.float_checked("radius", 1.0, |r| r > 0.0 && r.is_finite(), "positive")?;
+                let cylinder = Cylinder::new(&to_world, p0, p1, radius, flip).ok_or_else(|| {
+                    let loc = node.props.iter().find(|p| p.name == "to_world").map_or(&node.loc, |p| &p.loc);
+                    SceneError::at(loc, "a cylinder needs p0 ≠ p1 and a to_world that is a similarity (rotation, translation, uniform scale, no mirror)")
+                })?;
+                ShapeGeometry::Cylinder(cylinder)
+            }
+            "obj" | "ply" | "serialized" => ShapeGeometry::Mesh(self.mesh_file(&props, &to_world, flip)?),
             _ => return Err(unknown_plugin(node, &SHAPES)),
         };
         let shape_index = self.shapes.len() as u32;
@@ -247,6 +291,10 @@ impl Loader {
         if emitter_nodes.len() > 1 {
             return Err(SceneError::at(&emitter_nodes[1].loc, "a shape takes at most one emitter"));
         }
+        if let (true, Some(e)) = (self.in_group, emitter_nodes.first()) {
+            return Err(SceneError::at(&e.loc, "a shape inside a shapegroup cannot emit: Mitsuba does not support instancing of emitters")
+                .with_help("place the emitting shape outside the shapegroup, once per copy"));
+        }
         let bsdf = match bsdf_nodes.first() {
             Some(b) => self.bsdf(b)?,
             None => {
@@ -267,7 +315,60 @@ impl Loader {
         if shape.area() <= 0.0 || !shape.area().is_finite() {
             return Err(SceneError::at(&node.loc, format!("this {} has zero or non-finite surface area", node.plugin)));
         }
+        if !self.in_group {
+            self.top_shapes.push(self.shapes.len() as u32);
+        }
         self.shapes.push(shape);
+        Ok(())
+    }
+
+    /// Mitsuba's `shapegroup`: shapes that are not rendered themselves but
+    /// placed by `instance`s; built once however many instances use it.
+    fn shapegroup(&mut self, node: &Arc<Node>) -> Result<u32> {
+        let key = Arc::as_ptr(node);
+        if let Some(&g) = self.group_index.get(&key) {
+            return Ok(g);
+        }
+        let props = Props::new(node);
+        let mut members = vec![];
+        self.in_group = true;
+        let mut built = || -> Result<()> {
+            for c in props.children_of(Kind::Shape) {
+                let member = self.resolve(c)?;
+                let first = self.shapes.len() as u32;
+                self.shape(&member)?;
+                members.extend(first..self.shapes.len() as u32);
+            }
+            props.finish()
+        };
+        let result = built();
+        self.in_group = false;
+        result?;
+        self.groups.push(members);
+        let g = self.groups.len() as u32 - 1;
+        self.group_index.insert(key, g);
+        Ok(g)
+    }
+
+    /// Mitsuba's `instance`: a `<ref>` to a shapegroup placed by `to_world`.
+    fn instance(&mut self, node: &Arc<Node>) -> Result<()> {
+        let props = Props::new(node);
+        let to_world = props.transform("to_world")?;
+        let children = props.children_of(Kind::Shape);
+        let mut targets = vec![];
+        for c in children.iter().copied().chain(props.unnamed_refs()) {
+            targets.push((c, self.resolve(c)?));
+        }
+        let [(child, group)] = targets.as_slice() else {
+            return Err(SceneError::at(&node.loc, format!("an instance takes exactly one shapegroup (a <ref id=\"…\"/> to it), found {}", targets.len())));
+        };
+        if group.kind != Kind::Shape || group.plugin != "shapegroup" {
+            let what = if group.kind == Kind::Shape { format!("a \"{}\" shape", group.plugin) } else { format!("a <{}>", group.kind.tag()) };
+            return Err(SceneError::at(&child.loc, format!("an instance must refer to a shapegroup, not to {what}")).with_choices(&["shapegroup"]));
+        }
+        props.finish()?;
+        let g = self.shapegroup(group)?;
+        self.instances.push((to_world, g));
         Ok(())
     }
 
@@ -301,12 +402,22 @@ impl Loader {
     fn mesh_file(&self, props: &Props, to_world: &Transform, flip: bool) -> Result<Mesh> {
         let node = props.node;
         let filename = props.string_req("filename")?;
-        let face_normals = props.bool("face_normals", false)?;
+        let mut face_normals = props.bool("face_normals", false)?;
         let flip_tex = if node.plugin == "obj" { props.bool("flip_tex_coords", true)? } else { false };
         let path = resolve_path(node, filename);
         let file_loc = node.props.iter().find(|p| p.name == "filename").map_or(&node.loc, |p| &p.loc);
-        let raw = if node.plugin == "obj" { mesh_io::read_obj(&path) } else { mesh_io::read_ply(&path) }
-            .map_err(|e| SceneError::at(file_loc, e))?;
+        let raw = match node.plugin.as_str() {
+            "obj" => mesh_io::read_obj(&path),
+            "serialized" => {
+                let index = props.int_checked("shape_index", 0, |v| (0..=u32::MAX as i64).contains(&v), "a non-negative integer")?;
+                serialized::read_serialized(&path, index as u32).map(|s| {
+                    face_normals |= s.face_normals;
+                    s.mesh
+                })
+            }
+            _ => mesh_io::read_ply(&path),
+        }
+        .map_err(|e| SceneError::at(file_loc, e))?;
         let positions: Vec<Vec3> = raw.positions.iter().map(|&p| to_world.point(p)).collect();
         let normals = if face_normals {
             None
