@@ -43,7 +43,7 @@ fn bumpy_grid(n: u32) -> RawMesh {
             triangles.push([a, a + n + 2, a + n + 1]);
         }
     }
-    RawMesh { positions, normals: None, uvs: Some(uvs), triangles }
+    RawMesh { positions, normals: None, uvs: Some(uvs), triangles, attributes: vec![] }
 }
 
 fn write_ply(path: &Path, m: &RawMesh) {
@@ -388,4 +388,82 @@ fn cylinder_shape_errors() {
     assert_located(&load_err(&path, &text), &text, line_of(&text, "y=\"2\""), &["similarity"]);
     let text = scene("    <shape type=\"cylinder\">\n        <float name=\"radius\" value=\"-1\"/>\n    </shape>\n");
     assert_located(&load_err(&path, &text), &text, line_of(&text, "radius"), &["radius"]);
+}
+
+// ------------------------------------------------------------- mesh_attribute
+
+/// A furnace: an orthographic camera looking straight at the square
+/// [-1, 1]² (the PLY `ply`) under a white constant environment, lit by BSDF
+/// sampling alone. Every sample leaves the square into the environment
+/// with weight equal to the albedo at the hit, so a pixel is the albedo
+/// averaged over its footprint, without noise.
+fn attribute_furnace(dir: &Path, ply: &str, texture_name: &str, scale: f32) -> String {
+    std::fs::write(dir.join("quad.ply"), ply).unwrap();
+    format!(
+        r#"<scene version="3.0.0">
+    <integrator type="direct"><integer name="emitter_samples" value="0"/></integrator>
+    <sensor type="orthographic">
+        <transform name="to_world"><lookat origin="0, 0, 3" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="16"/><rfilter type="box"/></film>
+    </sensor>
+    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+    <shape type="ply">
+        <string name="filename" value="quad.ply"/>
+        <bsdf type="diffuse">
+            <texture type="mesh_attribute" name="reflectance">
+                <string name="name" value="{texture_name}"/>
+                <float name="scale" value="{scale}"/>
+            </texture>
+        </bsdf>
+    </shape>
+</scene>
+"#
+    )
+}
+
+#[test]
+fn vertex_colours_interpolate_linearly() {
+    let dir = temp_dir("vertex-colours");
+    // 8-bit colours (divided by 255): (0.2, 0.4, 0.8) at x = -1, (0.8, 0.6, 0.2) at x = 1.
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n-1 -1 0 51 102 204\n1 -1 0 204 153 51\n1 1 0 204 153 51\n-1 1 0 51 102 204\n4 0 1 2 3\n";
+    let text = attribute_furnace(&dir, ply, "vertex_color", 1.0);
+    let img = &render_passes(&dir.join("scene.xml"), Some(&text), Default::default(), 1, 64)[0];
+    let (c0, c1) = ([0.2f32, 0.4, 0.8], [0.8f32, 0.6, 0.2]);
+    // Column means: the albedo's mean over the column's footprint, i.e. at
+    // its centre (the only noise: where in the pixel samples fall, σ ≈ 3e-4).
+    let column = |x: usize, c: usize| (0..16).map(|y| img.pixels[y * 16 + x][c]).sum::<f32>() / 16.0;
+    // Whichever way the image's x runs along the world's x.
+    let err = |flip: bool| {
+        let mut worst = 0.0f32;
+        for x in 0..16 {
+            let wx = -1.0 + (x as f32 + 0.5) / 8.0;
+            let s = (if flip { -wx } else { wx } + 1.0) / 2.0;
+            for c in 0..3 {
+                worst = worst.max((column(x, c) - (c0[c] + (c1[c] - c0[c]) * s)).abs());
+            }
+        }
+        worst
+    };
+    let worst = err(false).min(err(true));
+    assert!(worst < 2e-3, "columns differ from the interpolated vertex colour by up to {worst}");
+}
+
+#[test]
+fn face_attributes_are_constant_per_face_and_scaled() {
+    let dir = temp_dir("face-weights");
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nproperty float weight\nend_header\n-1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n3 0 1 2 0.25\n3 0 2 3 0.75\n";
+    let text = attribute_furnace(&dir, ply, "face_weight", 0.8);
+    let img = &render_passes(&dir.join("scene.xml"), Some(&text), Default::default(), 1, 16)[0];
+    let m = mean(img);
+    // The diagonal splits the square in halves: mean 0.8 · (0.25 + 0.75) / 2.
+    assert!((m[0] - 0.4).abs() < 2e-3 && (m[1] - m[0]).abs() < 1e-6, "{m:?}");
+    let (lo, hi) = (img.pixels.iter().filter(|p| (p[0] - 0.2).abs() < 1e-5).count(), img.pixels.iter().filter(|p| (p[0] - 0.6).abs() < 1e-5).count());
+    assert!(lo >= 100 && hi >= 100, "{lo} pixels at 0.8·0.25 and {hi} at 0.8·0.75");
+    // An attribute no mesh has: located at its name, the known ones listed.
+    let text = attribute_furnace(&dir, ply, "vertex_color", 1.0);
+    let e = load_err(&dir.join("scene.xml"), &text);
+    assert_located(&e, &text, line_of(&text, "value=\"vertex_color\""), &["no mesh in the scene has the attribute \"vertex_color\""]);
+    assert!(e.help.as_deref().is_some_and(|h| h.contains("face_weight")), "{e}");
+    let text = attribute_furnace(&dir, ply, "color", 1.0);
+    assert_located(&load_err(&dir.join("scene.xml"), &text), &text, line_of(&text, "value=\"color\""), &["\"vertex_\" or \"face_\""]);
 }

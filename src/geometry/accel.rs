@@ -400,6 +400,21 @@ impl Accel {
     /// The closest hit along the ray before `ray.tmax`.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        // Two copies of the traversal: without instances the instance code
+        // is compiled out, so a scene without them runs as before.
+        if self.instances.is_empty() { self.closest::<false>(ray) } else { self.closest::<true>(ray) }
+    }
+
+    /// Whether anything lies on the ray before `ray.tmax`.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        if self.instances.is_empty() { self.any_hit::<false>(ray) } else { self.any_hit::<true>(ray) }
+    }
+
+    /// Closest hit; `INSTANCES`: this BVH may hold instances (whose groups
+    /// are traced by the `false` copy: groups do not nest).
+    #[inline(always)]
+    fn closest<const INSTANCES: bool>(&self, ray: &Ray) -> Option<Hit> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -467,14 +482,16 @@ impl Accel {
                         }
                         tmax = t[lane];
                         found = Some((self.packet_refs[pi as usize][lane], u.to_array()[lane], v.to_array()[lane]));
-                        instance = NO_INSTANCE;
+                        if INSTANCES {
+                            instance = NO_INSTANCE;
+                        }
                     }
                 }
                 for oi in leaf.other_start..leaf.other_end {
                     let g = &self.others[oi as usize];
-                    if let PrimGeom::Instance(i) = g {
+                    if let (true, PrimGeom::Instance(i)) = (INSTANCES, g) {
                         let (group, local) = self.instance_ray(*i, ray, tmax);
-                        if let Some(h) = group.intersect(&local) {
+                        if let Some(h) = group.closest::<false>(&local) {
                             tmax = h.t;
                             found = Some((PrimRef { shape: h.shape, prim: h.prim }, h.bary.0, h.bary.1));
                             instance = *i;
@@ -485,7 +502,9 @@ impl Accel {
                     if t < tmax {
                         tmax = t;
                         found = Some((self.other_refs[oi as usize], 0.0, 0.0));
-                        instance = NO_INSTANCE;
+                        if INSTANCES {
+                            instance = NO_INSTANCE;
+                        }
                     }
                 }
             }
@@ -506,9 +525,8 @@ impl Accel {
         }
     }
 
-    /// Whether anything lies on the ray before `ray.tmax`.
-    #[inline]
-    pub fn occluded(&self, ray: &Ray) -> bool {
+    #[inline(always)]
+    fn any_hit<const INSTANCES: bool>(&self, ray: &Ray) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
@@ -540,9 +558,9 @@ impl Accel {
                 }
                 for oi in leaf.other_start..leaf.other_end {
                     let g = &self.others[oi as usize];
-                    if let PrimGeom::Instance(i) = g {
+                    if let (true, PrimGeom::Instance(i)) = (INSTANCES, g) {
                         let (group, local) = self.instance_ray(*i, ray, tmax);
-                        if group.occluded(&local) {
+                        if group.any_hit::<false>(&local) {
                             return true;
                         }
                     } else if intersect_prim_bary(g, r.o, r.d, tmax).0 < tmax {

@@ -150,7 +150,7 @@ pub fn parse(data: &[u8], shape_index: u32) -> Result<SerializedMesh, String> {
             [i(0), i(4), i(8)]
         })
         .collect();
-    let mesh = RawMesh { positions, normals, uvs, triangles }.validate()?;
+    let mesh = RawMesh { positions, normals, uvs, triangles, attributes: vec![] }.validate()?;
     if colors.as_ref().is_some_and(|c| c.iter().any(|v| !v.is_finite())) {
         return Err("a vertex colour is not a finite number".into());
     }
@@ -275,6 +275,7 @@ mod tests {
             normals: Some(vec![Vec3::Z; 4]),
             uvs: Some(vec![Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 1.0)]),
             triangles: vec![[0, 1, 2], [0, 2, 3]],
+            attributes: vec![],
         }
     }
 

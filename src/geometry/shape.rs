@@ -48,7 +48,7 @@ impl Shape {
     /// The full interaction at a hit found by the accelerator, with the
     /// barycentrics (b1, b2) it reported for a triangle.
     pub fn interaction(&self, shape_index: u32, prim: u32, ray_o: Vec3, ray_d: Vec3, t: f32, bary: (f32, f32)) -> SurfaceInteraction {
-        let (p, n, sh_n, uv) = match &self.geometry {
+        let (p, n, sh_n, uv, bary) = match &self.geometry {
             ShapeGeometry::Mesh(m) => {
                 let i = prim as usize;
                 let [a, b, c] = m.vertices(i);
@@ -61,29 +61,29 @@ impl Shape {
                 let p = a + e1 * b1 + e2 * b2;
                 let n = m.face_normal(i);
                 let (sh_n, uv) = m.shading(i, b1, b2, n);
-                (p, n, sh_n, uv)
+                (p, n, sh_n, uv, Vec2::new(b1, b2))
             }
             ShapeGeometry::Sphere(s) => {
                 let p = ray_o + ray_d * t;
                 // Project onto the surface to remove the error of o + t·d.
                 let p = s.center + (p - s.center).normalize_or_zero() * s.radius;
                 let n = s.normal_at(p);
-                (p, n, n, s.uv_at(p))
+                (p, n, n, s.uv_at(p), Vec2::ZERO)
             }
             ShapeGeometry::Disk(d) => {
                 let p = ray_o + ray_d * t;
-                (p, d.normal, d.normal, d.uv_at(p))
+                (p, d.normal, d.normal, d.uv_at(p), Vec2::ZERO)
             }
             ShapeGeometry::Cylinder(c) => {
                 let (p, n, uv, _) = c.surface(ray_o + ray_d * t);
-                (p, n, n, uv)
+                (p, n, n, uv, Vec2::ZERO)
             }
         };
         let frame = match self.tangent_frame.then(|| self.dp_du(prim, p)).flatten() {
             Some(dp_du) => Frame::from_normal_and_tangent(sh_n, dp_du),
             None => Frame::from_normal(sh_n),
         };
-        SurfaceInteraction { p, t, n, frame, uv, shape: shape_index, wi: frame.to_local(-ray_d) }
+        SurfaceInteraction { p, t, n, frame, uv, shape: shape_index, prim, bary, wi: frame.to_local(-ray_d) }
     }
 
     /// As [`Shape::interaction`] for a shape of a shape group placed by an
@@ -108,7 +108,7 @@ impl Shape {
         } else {
             Frame::from_normal(sh_n)
         };
-        SurfaceInteraction { p: to_world.point(local.p), t, n, frame, uv: local.uv, shape: shape_index, wi: frame.to_local(-ray_d) }
+        SurfaceInteraction { p: to_world.point(local.p), t, n, frame, wi: frame.to_local(-ray_d), ..local }
     }
 
     /// ∂p/∂u at `p` on primitive `prim`, with Mitsuba's parametrisations:

@@ -26,7 +26,7 @@ use crate::sensor::perspective::horizontal_fov;
 use crate::sensor::{Camera, Orthographic, Perspective};
 use crate::spectrum::{Emission, Rgb};
 use crate::texture::bitmap::{self, Bitmap};
-use crate::texture::{Checkerboard, Texture, uv_transform};
+use crate::texture::{Checkerboard, MeshAttributeTexture, Texture, uv_transform};
 use glam::{Mat4, Vec3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -34,7 +34,7 @@ use std::sync::Arc;
 
 pub const SHAPES: [&str; 10] = ["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "shapegroup", "instance"];
 pub const BSDFS: [&str; 8] = ["conductor", "dielectric", "diffuse", "plastic", "polarizer", "retarder", "thindielectric", "twosided"];
-pub const TEXTURES: [&str; 2] = ["bitmap", "checkerboard"];
+pub const TEXTURES: [&str; 3] = ["bitmap", "checkerboard", "mesh_attribute"];
 pub const EMITTERS: [&str; 5] = ["area", "point", "spot", "constant", "directional"];
 pub const SENSORS: [&str; 2] = ["perspective", "orthographic"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
@@ -80,6 +80,9 @@ struct Loader {
     instances: Vec<(Transform, u32)>,
     /// Building the members of a shape group.
     in_group: bool,
+    /// `mesh_attribute` textures, resolved against the meshes once all
+    /// are loaded, with the location of their `name`.
+    mesh_attribute_textures: std::cell::RefCell<Vec<(Arc<MeshAttributeTexture>, super::Location)>>,
 }
 
 fn collect_ids(node: &Node, ids: &mut HashMap<String, Arc<Node>>) -> Result<()> {
@@ -128,6 +131,7 @@ impl Loader {
             group_index: HashMap::new(),
             instances: vec![],
             in_group: false,
+            mesh_attribute_textures: Default::default(),
         })
     }
 
@@ -220,6 +224,7 @@ impl Loader {
                     .with_choices(&["area", "point", "spot"]));
             }
         }
+        self.resolve_mesh_attributes()?;
         let accel = Accel::build_instanced(&self.shapes, &self.top_shapes, &self.groups, &self.instances);
         Ok(Scene {
             shapes: self.shapes,
@@ -319,6 +324,36 @@ impl Loader {
             self.top_shapes.push(self.shapes.len() as u32);
         }
         self.shapes.push(shape);
+        Ok(())
+    }
+
+    /// Points every `mesh_attribute` texture at its attribute on each mesh;
+    /// an attribute no mesh has, or of 2 or more than 3 components, is an error.
+    fn resolve_mesh_attributes(&self) -> Result<()> {
+        for (tex, loc) in self.mesh_attribute_textures.borrow().iter() {
+            let mut known = vec![];
+            let table: Vec<_> = self
+                .shapes
+                .iter()
+                .map(|s| match &s.geometry {
+                    ShapeGeometry::Mesh(m) => {
+                        known.extend(m.attributes.iter().map(|(n, _)| n.as_str()));
+                        m.attributes.iter().find(|(n, _)| *n == tex.name).map(|(_, a)| a.clone())
+                    }
+                    _ => None,
+                })
+                .collect();
+            if let Some(a) = table.iter().flatten().find(|a| a.dims != 1 && a.dims != 3) {
+                return Err(SceneError::at(loc, format!("mesh attribute \"{}\" has {} components; a texture reads 1 or 3", tex.name, a.dims)));
+            }
+            if table.iter().all(Option::is_none) {
+                known.sort();
+                known.dedup();
+                let e = SceneError::at(loc, format!("no mesh in the scene has the attribute \"{}\"", tex.name));
+                return Err(if known.is_empty() { e.with_help("no mesh in this scene has attributes (PLY vertex or face properties)") } else { e.with_choices(&known) });
+            }
+            let _ = tex.table.set(table);
+        }
         Ok(())
     }
 
@@ -429,7 +464,10 @@ impl Loader {
         };
         // tobj applied Mitsuba's default flip already; undo it if asked.
         let uvs = raw.uvs.map(|uvs| if flip_tex { uvs } else { uvs.into_iter().map(|uv| glam::Vec2::new(uv.x, 1.0 - uv.y)).collect() });
-        Ok(Mesh::new(positions, normals, uvs, raw.triangles, flip))
+        let attributes = raw.attributes.iter().map(|(n, a)| (n.clone(), Arc::new(a.to_corners(&raw.triangles)))).collect();
+        let mut mesh = Mesh::new(positions, normals, uvs, raw.triangles, flip);
+        mesh.attributes = attributes;
+        Ok(mesh)
     }
 
     // ------------------------------------------------------------ materials
@@ -600,6 +638,18 @@ impl Loader {
                     return Err(SceneError::at(loc, format!("image {} is empty", path.display())));
                 }
                 Texture::Bitmap(Arc::new(Bitmap { width, height, texels, filter, wrap, to_uv }))
+            }
+            "mesh_attribute" => {
+                let name = props.string_req("name")?;
+                let loc = node.props.iter().find(|p| p.name == "name").map_or(&node.loc, |p| &p.loc);
+                if !(name.starts_with("vertex_") || name.starts_with("face_")) {
+                    return Err(SceneError::at(loc, format!("mesh attribute name \"{name}\" must start with \"vertex_\" or \"face_\""))
+                        .with_help("e.g. \"vertex_color\" or \"face_color\""));
+                }
+                let scale = props.float_checked("scale", 1.0, f32::is_finite, "a finite number")?;
+                let tex = Arc::new(MeshAttributeTexture { name: name.to_string(), scale, table: Default::default() });
+                self.mesh_attribute_textures.borrow_mut().push((tex.clone(), loc.clone()));
+                Texture::MeshAttribute(tex)
             }
             _ => return Err(unknown_plugin(node, &TEXTURES)),
         };
