@@ -112,6 +112,8 @@ impl Cylinder {
     }
 
     /// Point projected onto the surface, geometric normal, uv and ∂p/∂u at a hit `p`.
+    /// (Not inlined: it would grow `Shape::interaction`, which meshes use.)
+    #[inline(never)]
     pub fn surface(&self, p: Vec3) -> (Vec3, Vec3, Vec2, Vec3) {
         let l = self.to_world.inverse_point(p);
         let radial = Vec3::new(l.x, l.y, 0.0);
