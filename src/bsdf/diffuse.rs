@@ -38,7 +38,7 @@ impl Diffuse {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return S::zero();
         }
-        self.reflectance.eval_spectrum::<S>(si.uv, wl).depolarize() * (INV_PI * wo.z)
+        self.reflectance.eval_spectrum::<S>(si, wl).depolarize() * (INV_PI * wo.z)
     }
 
     #[inline]
@@ -58,7 +58,7 @@ impl Diffuse {
         }
         Some(BsdfSample {
             wo,
-            weight: self.reflectance.eval_spectrum::<S>(si.uv, wl).depolarize(),
+            weight: self.reflectance.eval_spectrum::<S>(si, wl).depolarize(),
             pdf,
             eta: 1.0,
             lobe: Lobe::DIFFUSE_REFLECTION,

@@ -18,6 +18,8 @@ pub fn dummy_interaction() -> SurfaceInteraction {
         frame: Frame::from_normal(Vec3::Z),
         uv: Vec2::new(0.3, 0.6),
         shape: 0,
+        prim: 0,
+        bary: Vec2::ZERO,
         wi: Vec3::Z,
     }
 }

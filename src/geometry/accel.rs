@@ -5,6 +5,14 @@
 //! all of them. Leaves hold triangles in SoA packets of eight, tested at
 //! once by a SIMD Möller–Trumbore; spheres and disks are tested one by one.
 //!
+//! Instancing (Mitsuba's `shapegroup` + `instance`) makes it two-level:
+//! each shape group gets its own BVH, built once, and each instance is one
+//! primitive of the top-level BVH (its group's box under its transform).
+//! A ray reaching an instance is moved into the group's space by the
+//! inverse transform (its direction is not renormalised, so distances t
+//! stay the same) and traced through the group's BVH. Scenes without
+//! instances never take that path.
+//!
 //! Why our own and not a crate: it replaced `obvhs` (a binary BVH walked one
 //! box at a time) after measuring 9 % fewer instructions per sample and
 //! 11 % more samples/s on the Cornell box (2.30 → 2.56 M/s); scenes here are
@@ -14,6 +22,7 @@
 mod build;
 mod simd;
 
+use super::cylinder::Cylinder;
 use super::disk::Disk;
 use super::shape::{Shape, ShapeGeometry};
 use super::sphere::Sphere;
@@ -31,7 +40,22 @@ enum PrimGeom {
     Triangle { v0: Vec3A, e1: Vec3A, e2: Vec3A },
     Sphere { center: Vec3, radius: f32 },
     Disk { to_object: Box<Transform> },
+    /// World → object, radius, length.
+    Cylinder(Box<(Transform, f32, f32)>),
+    /// Index into `Accel::instances`.
+    Instance(u32),
 }
+
+/// One placement of a shape group: its group-to-world transform (with the
+/// inverse) and which group.
+#[derive(Clone, Debug)]
+pub struct Instance {
+    pub to_world: Transform,
+    pub group: u32,
+}
+
+/// `Hit::instance` of a hit on a shape that is not instanced.
+pub const NO_INSTANCE: u32 = u32::MAX;
 
 #[derive(Clone, Copy, Debug)]
 pub struct PrimRef {
@@ -46,6 +70,8 @@ pub struct Hit {
     pub bary: (f32, f32),
     pub shape: u32,
     pub prim: u32,
+    /// The instance the hit shape belongs to, or [`NO_INSTANCE`].
+    pub instance: u32,
 }
 
 /// Children per node.
@@ -96,6 +122,11 @@ pub struct Accel {
     packet_refs: Vec<[PrimRef; PACKET]>,
     others: Vec<PrimGeom>,
     other_refs: Vec<PrimRef>,
+    /// One BVH per shape group, and the instances placing them.
+    groups: Vec<Accel>,
+    instances: Vec<Instance>,
+    /// Bounds of everything (min, max); inverted when empty.
+    extent: (Vec3, Vec3),
 }
 
 fn prim_geom(shape: &Shape, prim: usize) -> (PrimGeom, Aabb) {
@@ -119,6 +150,11 @@ fn prim_geom(shape: &Shape, prim: usize) -> (PrimGeom, Aabb) {
             }
             let to_object = Transform { matrix: d.to_world.inverse, inverse: d.to_world.matrix };
             (PrimGeom::Disk { to_object: Box::new(to_object) }, aabb)
+        }
+        ShapeGeometry::Cylinder(c) => {
+            let (lo, hi) = c.bounds();
+            let to_object = Transform { matrix: c.to_world.inverse, inverse: c.to_world.matrix };
+            (PrimGeom::Cylinder(Box::new((to_object, c.radius, c.length))), Aabb { lo: lo.into(), hi: hi.into() })
         }
     }
 }
@@ -151,6 +187,9 @@ fn intersect_prim_bary(g: &PrimGeom, o: Vec3A, d: Vec3A, tmax: f32) -> (f32, f32
         }
         PrimGeom::Sphere { center, radius } => (Sphere::intersect(*center, *radius, o.into(), d.into(), tmax), 0.0, 0.0),
         PrimGeom::Disk { to_object } => (Disk::intersect(to_object, o.into(), d.into(), tmax), 0.0, 0.0),
+        PrimGeom::Cylinder(c) => (Cylinder::intersect(&c.0, c.1, c.2, o.into(), d.into(), tmax), 0.0, 0.0),
+        // Instances are traced by `Accel` itself; never reached.
+        PrimGeom::Instance(_) => MISS,
     }
 }
 
@@ -265,22 +304,61 @@ impl RayData {
 
 impl Accel {
     pub fn build(shapes: &[Shape]) -> Accel {
+        let all: Vec<u32> = (0..shapes.len() as u32).collect();
+        Self::build_instanced(shapes, &all, &[], &[])
+    }
+
+    /// A BVH over the shapes `top` (indices into `shapes`) and the
+    /// `instances` (transform, group) of the shape `groups` (each a list of
+    /// indices into `shapes`). Each group's BVH is built once.
+    pub fn build_instanced(shapes: &[Shape], top: &[u32], groups: &[Vec<u32>], instances: &[(Transform, u32)]) -> Accel {
+        let group_accels: Vec<Accel> = groups.iter().map(|members| Self::build_instanced(shapes, members, &[], &[])).collect();
         let mut geoms = vec![];
         let mut refs = vec![];
         let mut boxes = vec![];
-        for (si, shape) in shapes.iter().enumerate() {
+        let mut extent = Aabb::EMPTY;
+        for &si in top {
+            let shape = &shapes[si as usize];
             for p in 0..shape.primitive_count() {
                 let (g, aabb) = prim_geom(shape, p);
+                extent = extent.grow(aabb.lo).grow(aabb.hi);
                 // Flat primitives have zero-thickness boxes; pad them so the
                 // slab test never rejects a hit on an axis-aligned face.
                 let pad = Vec3A::splat(1e-6) * (1.0 + aabb.hi.abs().max(aabb.lo.abs()).max_element());
                 geoms.push(g);
-                refs.push(PrimRef { shape: si as u32, prim: p as u32 });
+                refs.push(PrimRef { shape: si, prim: p as u32 });
                 boxes.push(Aabb { lo: aabb.lo - pad, hi: aabb.hi + pad });
             }
         }
-        let mut accel =
-            Accel { nodes: vec![], leaves: vec![], packets: vec![], packet_refs: vec![], others: vec![], other_refs: vec![] };
+        let mut kept = vec![];
+        for (to_world, group) in instances {
+            let (lo, hi) = group_accels[*group as usize].extent;
+            if lo.x > hi.x {
+                continue; // an empty group
+            }
+            let mut aabb = Aabb::EMPTY;
+            for k in 0..8 {
+                let c = Vec3::new([lo.x, hi.x][k & 1], [lo.y, hi.y][(k >> 1) & 1], [lo.z, hi.z][k >> 2]);
+                aabb = aabb.grow(to_world.point(c).into());
+            }
+            extent = extent.grow(aabb.lo).grow(aabb.hi);
+            let pad = Vec3A::splat(1e-5) * (1.0 + aabb.hi.abs().max(aabb.lo.abs()).max_element());
+            geoms.push(PrimGeom::Instance(kept.len() as u32));
+            refs.push(PrimRef { shape: u32::MAX, prim: kept.len() as u32 });
+            boxes.push(Aabb { lo: aabb.lo - pad, hi: aabb.hi + pad });
+            kept.push(Instance { to_world: *to_world, group: *group });
+        }
+        let mut accel = Accel {
+            nodes: vec![],
+            leaves: vec![],
+            packets: vec![],
+            packet_refs: vec![],
+            others: vec![],
+            other_refs: vec![],
+            groups: group_accels,
+            instances: kept,
+            extent: (extent.lo.into(), extent.hi.into()),
+        };
         if boxes.is_empty() {
             return accel;
         }
@@ -292,15 +370,58 @@ impl Accel {
         accel
     }
 
+    /// Instance `i` of a hit (`Hit::instance`).
+    pub fn instance(&self, i: u32) -> &Instance {
+        &self.instances[i as usize]
+    }
+
+    /// The ray in the space of instance `i`'s group (same t along it).
+    #[inline]
+    fn instance_ray(&self, i: u32, ray: &Ray, tmax: f32) -> (&Accel, Ray) {
+        let inst = &self.instances[i as usize];
+        let local = Ray { o: inst.to_world.inverse_point(ray.o), d: inst.to_world.inverse_vector(ray.d), tmax };
+        (&self.groups[inst.group as usize], local)
+    }
+
+    /// Bytes held by the acceleration structure (nodes, leaves, primitive
+    /// data, groups and instance records), for memory reports.
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.nodes.capacity() * size_of::<Node>()
+            + self.leaves.capacity() * size_of::<Leaf>()
+            + self.packets.capacity() * size_of::<TriPacket>()
+            + self.packet_refs.capacity() * size_of::<[PrimRef; PACKET]>()
+            + self.others.capacity() * size_of::<PrimGeom>()
+            + self.other_refs.capacity() * size_of::<PrimRef>()
+            + self.instances.capacity() * size_of::<Instance>()
+            + self.groups.iter().map(Accel::memory_bytes).sum::<usize>()
+    }
+
     /// The closest hit along the ray before `ray.tmax`.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        // Two copies of the traversal: without instances the instance code
+        // is compiled out, so a scene without them runs as before.
+        if self.instances.is_empty() { self.closest::<false>(ray) } else { self.closest::<true>(ray) }
+    }
+
+    /// Whether anything lies on the ray before `ray.tmax`.
+    #[inline]
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        if self.instances.is_empty() { self.any_hit::<false>(ray) } else { self.any_hit::<true>(ray) }
+    }
+
+    /// Closest hit; `INSTANCES`: this BVH may hold instances (whose groups
+    /// are traced by the `false` copy: groups do not nest).
+    #[inline(always)]
+    fn closest<const INSTANCES: bool>(&self, ray: &Ray) -> Option<Hit> {
         if self.nodes.is_empty() {
             return None;
         }
         let r = RayData::new(ray);
         let mut tmax = ray.tmax;
         let mut found: Option<(PrimRef, f32, f32)> = None;
+        let mut instance = NO_INSTANCE;
         // Entries: entry distance bits (non-negative floats order like
         // their bits) above the child code, so they sort as integers.
         let mut stack: [MaybeUninit<u64>; STACK] = [MaybeUninit::uninit(); STACK];
@@ -361,13 +482,29 @@ impl Accel {
                         }
                         tmax = t[lane];
                         found = Some((self.packet_refs[pi as usize][lane], u.to_array()[lane], v.to_array()[lane]));
+                        if INSTANCES {
+                            instance = NO_INSTANCE;
+                        }
                     }
                 }
                 for oi in leaf.other_start..leaf.other_end {
-                    let (t, _, _) = intersect_prim_bary(&self.others[oi as usize], r.o, r.d, tmax);
+                    let g = &self.others[oi as usize];
+                    if let (true, PrimGeom::Instance(i)) = (INSTANCES, g) {
+                        let (group, local) = self.instance_ray(*i, ray, tmax);
+                        if let Some(h) = group.closest::<false>(&local) {
+                            tmax = h.t;
+                            found = Some((PrimRef { shape: h.shape, prim: h.prim }, h.bary.0, h.bary.1));
+                            instance = *i;
+                        }
+                        continue;
+                    }
+                    let (t, _, _) = intersect_prim_bary(g, r.o, r.d, tmax);
                     if t < tmax {
                         tmax = t;
                         found = Some((self.other_refs[oi as usize], 0.0, 0.0));
+                        if INSTANCES {
+                            instance = NO_INSTANCE;
+                        }
                     }
                 }
             }
@@ -375,7 +512,7 @@ impl Accel {
             loop {
                 if sp == 0 {
                     let (pref, b1, b2) = found?;
-                    return Some(Hit { t: tmax, bary: (b1, b2), shape: pref.shape, prim: pref.prim });
+                    return Some(Hit { t: tmax, bary: (b1, b2), shape: pref.shape, prim: pref.prim, instance });
                 }
                 sp -= 1;
                 // SAFETY: entries below `sp` were written before.
@@ -388,9 +525,8 @@ impl Accel {
         }
     }
 
-    /// Whether anything lies on the ray before `ray.tmax`.
-    #[inline]
-    pub fn occluded(&self, ray: &Ray) -> bool {
+    #[inline(always)]
+    fn any_hit<const INSTANCES: bool>(&self, ray: &Ray) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
@@ -421,7 +557,13 @@ impl Accel {
                     }
                 }
                 for oi in leaf.other_start..leaf.other_end {
-                    if intersect_prim_bary(&self.others[oi as usize], r.o, r.d, tmax).0 < tmax {
+                    let g = &self.others[oi as usize];
+                    if let (true, PrimGeom::Instance(i)) = (INSTANCES, g) {
+                        let (group, local) = self.instance_ray(*i, ray, tmax);
+                        if group.any_hit::<false>(&local) {
+                            return true;
+                        }
+                    } else if intersect_prim_bary(g, r.o, r.d, tmax).0 < tmax {
                         return true;
                     }
                 }
@@ -436,16 +578,8 @@ impl Accel {
     }
 
     /// Bounding box of everything (min, max); a unit box around the origin when empty.
-    pub fn bounds(&self, shapes: &[Shape]) -> (Vec3, Vec3) {
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for s in shapes {
-            for p in 0..s.primitive_count() {
-                let (_, b) = prim_geom(s, p);
-                lo = lo.min(b.lo.into());
-                hi = hi.max(b.hi.into());
-            }
-        }
+    pub fn bounds(&self, _shapes: &[Shape]) -> (Vec3, Vec3) {
+        let (lo, hi) = self.extent;
         if lo.x > hi.x { (Vec3::splat(-1.0), Vec3::splat(1.0)) } else { (lo, hi) }
     }
 }

@@ -13,6 +13,10 @@ pub struct SurfaceInteraction {
     pub frame: Frame,
     pub uv: Vec2,
     pub shape: u32,
+    /// The primitive (triangle) hit and the hit's barycentrics (b1, b2) on
+    /// it (zero for other shapes): for textures that read mesh attributes.
+    pub prim: u32,
+    pub bary: Vec2,
     /// Direction towards where the ray came from, in the local shading frame.
     pub wi: Vec3,
 }

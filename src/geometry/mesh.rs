@@ -8,7 +8,9 @@
 
 use crate::math::Transform;
 use crate::math::sampling::{DiscreteDistribution, square_to_uniform_triangle};
+use super::mesh_io::Attribute;
 use super::sphere::DirectionSample;
+use std::sync::Arc;
 use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]
@@ -20,6 +22,9 @@ pub struct Mesh {
     pub triangles: Vec<[u32; 3]>,
     /// Negate geometric and shading normals (Mitsuba's `flip_normals`).
     pub flip_normals: bool,
+    /// Mesh attributes by name (`vertex_color`, `face_weight`, …); vertex
+    /// attributes stored per triangle corner (see `Attribute::to_corners`).
+    pub attributes: Vec<(String, Arc<Attribute>)>,
     /// Unit geometric normal per triangle (flip applied), precomputed
     /// because every hit and every emitter sample needs it.
     face_normals: Vec<Vec3>,
@@ -77,7 +82,7 @@ impl Mesh {
         flip_normals: bool,
     ) -> Mesh {
         let mut mesh =
-            Mesh { positions, normals, uvs, triangles, flip_normals, face_normals: vec![], area_distribution: Default::default() };
+            Mesh { positions, normals, uvs, triangles, flip_normals, attributes: vec![], face_normals: vec![], area_distribution: Default::default() };
         if let Some(ns) = &mut mesh.normals {
             for n in ns.iter_mut() {
                 *n = n.normalize_or_zero();

@@ -12,10 +12,81 @@ pub struct RawMesh {
     pub normals: Option<Vec<Vec3>>,
     pub uvs: Option<Vec<Vec2>>,
     pub triangles: Vec<[u32; 3]>,
+    /// Other per-vertex or per-face data (PLY properties beyond positions,
+    /// normals and uvs), by Mitsuba's name: `vertex_color`, `face_weight`, …
+    pub attributes: Vec<(String, Attribute)>,
+}
+
+/// A mesh attribute: `dims` values per vertex or per triangle.
+#[derive(Clone, Debug)]
+pub struct Attribute {
+    pub per_face: bool,
+    pub dims: usize,
+    pub data: Vec<f32>,
+}
+
+impl Attribute {
+    /// A per-vertex attribute as values per triangle corner (3 × dims per
+    /// triangle), so a hit reads its triangle's values directly.
+    pub fn to_corners(&self, triangles: &[[u32; 3]]) -> Attribute {
+        if self.per_face {
+            return self.clone();
+        }
+        let d = self.dims;
+        let mut data = Vec::with_capacity(triangles.len() * 3 * d);
+        for t in triangles {
+            for &v in t {
+                data.extend_from_slice(&self.data[v as usize * d..(v as usize + 1) * d]);
+            }
+        }
+        Attribute { per_face: false, dims: d, data }
+    }
+}
+
+/// Groups a PLY element's extra properties into attributes as Mitsuba
+/// does: `r g b` / `red green blue` become `color` (8-bit values divided
+/// by 255), `name_0, name_1, …` become `name` with that many components,
+/// any other property `name` a one-component attribute. Returns (name,
+/// property names in component order, divide by 255).
+fn attribute_groups(keys: &[String], skip: &[&str]) -> Vec<(String, Vec<String>)> {
+    let keys: Vec<&String> = keys.iter().filter(|k| !skip.contains(&k.as_str())).collect();
+    let mut groups: Vec<(String, Vec<String>)> = vec![];
+    let mut used = vec![false; keys.len()];
+    for colour in [["r", "g", "b"], ["red", "green", "blue"]] {
+        if colour.iter().all(|c| keys.iter().any(|k| k.as_str() == *c)) {
+            for (i, k) in keys.iter().enumerate() {
+                used[i] |= colour.contains(&k.as_str());
+            }
+            groups.push(("color".into(), colour.iter().map(|c| c.to_string()).collect()));
+        }
+    }
+    for (i, k) in keys.iter().enumerate() {
+        if used[i] {
+            continue;
+        }
+        let (prefix, index) = match k.rsplit_once('_') {
+            Some((p, n)) if !p.is_empty() && n.parse::<usize>().is_ok_and(|i| i < 16) => (p.to_string(), n.parse::<usize>().unwrap_or(0)),
+            _ => (k.to_string(), 0),
+        };
+        match groups.iter_mut().find(|(name, _)| *name == prefix) {
+            Some((_, members)) => {
+                if members.len() <= index {
+                    members.resize(index + 1, String::new());
+                }
+                members[index] = k.to_string();
+            }
+            None => {
+                let mut members = vec![String::new(); index + 1];
+                members[index] = k.to_string();
+                groups.push((prefix, members));
+            }
+        }
+    }
+    groups
 }
 
 impl RawMesh {
-    fn validate(self) -> Result<RawMesh, String> {
+    pub(crate) fn validate(self) -> Result<RawMesh, String> {
         let n = self.positions.len() as u32;
         if self.triangles.is_empty() {
             return Err("the mesh has no faces".into());
@@ -31,6 +102,12 @@ impl RawMesh {
         }
         if self.uvs.as_ref().is_some_and(|uv| uv.len() != n as usize || uv.iter().any(|v| !v.is_finite())) {
             return Err("the mesh's texture coordinates do not match its vertices".into());
+        }
+        for (name, a) in &self.attributes {
+            let count = if a.per_face { self.triangles.len() } else { n as usize };
+            if a.dims == 0 || a.data.len() != count * a.dims || a.data.iter().any(|v| !v.is_finite()) {
+                return Err(format!("the mesh attribute \"{name}\" does not match its {}", if a.per_face { "faces" } else { "vertices" }));
+            }
         }
         Ok(self)
     }
@@ -115,6 +192,28 @@ pub fn read_ply(path: &Path) -> Result<RawMesh, String> {
         .into_iter()
         .find(|(a, b)| has(a) && has(b));
     let has_normals = has("nx") && has("ny") && has("nz");
+    let mut skip = vec!["x", "y", "z"];
+    if has_normals {
+        skip.extend(["nx", "ny", "nz"]);
+    }
+    if let Some((a, b)) = uv_keys {
+        skip.extend([a, b]);
+    }
+    let vertex_keys: Vec<String> = first.map(|v| v.keys().cloned().collect()).unwrap_or_default();
+    let face_keys: Vec<String> = faces.first().map(|f| f.keys().cloned().collect()).unwrap_or_default();
+    let vertex_groups = attribute_groups(&vertex_keys, &skip);
+    let face_groups = attribute_groups(&face_keys, &["vertex_indices", "vertex_index"]);
+    let mut vertex_data: Vec<Vec<f32>> = vec![vec![]; vertex_groups.len()];
+    let mut face_data: Vec<Vec<f32>> = vec![vec![]; face_groups.len()];
+    // A group's values for one element; None if one is missing or not a number.
+    fn values(e: &DefaultElement, members: &[String], out: &mut Vec<f32>) -> Option<()> {
+        for m in members {
+            let p = e.get(m)?;
+            let v = scalar(Some(p))?;
+            out.push(if matches!(p, Property::UChar(_)) && members.len() >= 3 && (m == "r" || m == "g" || m == "b" || m == "red" || m == "green" || m == "blue") { v / 255.0 } else { v });
+        }
+        Some(())
+    }
     let mut normals = vec![];
     let mut uvs = vec![];
     for v in vertices {
@@ -137,6 +236,9 @@ pub fn read_ply(path: &Path) -> Result<RawMesh, String> {
                 _ => return Err(err("a texture coordinate is not numeric")),
             }
         }
+        for ((name, members), out) in vertex_groups.iter().zip(&mut vertex_data) {
+            values(v, members, out).ok_or_else(|| err(&format!("vertex attribute \"{name}\" is missing or not numeric on a vertex")))?;
+        }
     }
     for f in faces {
         let idx = index_list(f.get("vertex_indices").or_else(|| f.get("vertex_index")))
@@ -147,9 +249,24 @@ pub fn read_ply(path: &Path) -> Result<RawMesh, String> {
         if idx.iter().any(|&i| i < 0 || i > u32::MAX as i64) {
             return Err(err("a face has a vertex index that is negative or too large"));
         }
+        let mut face_values = vec![];
+        for ((name, members), out) in face_groups.iter().zip(&mut face_data) {
+            face_values.clear();
+            values(f, members, &mut face_values).ok_or_else(|| err(&format!("face attribute \"{name}\" is missing or not numeric on a face")))?;
+            // A polygon is fanned into triangles that share its values.
+            for _ in 1..idx.len() - 1 {
+                out.extend_from_slice(&face_values);
+            }
+        }
         for k in 1..idx.len() - 1 {
             out.triangles.push([idx[0] as u32, idx[k] as u32, idx[k + 1] as u32]);
         }
+    }
+    for ((name, members), data) in vertex_groups.into_iter().zip(vertex_data) {
+        out.attributes.push((format!("vertex_{name}"), Attribute { per_face: false, dims: members.len(), data }));
+    }
+    for ((name, members), data) in face_groups.into_iter().zip(face_data) {
+        out.attributes.push((format!("face_{name}"), Attribute { per_face: true, dims: members.len(), data }));
     }
     out.normals = has_normals.then_some(normals);
     out.uvs = uv_keys.is_some().then_some(uvs);

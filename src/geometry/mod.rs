@@ -2,11 +2,13 @@
 //! interactions and the acceleration structure over all of them.
 
 pub mod accel;
+pub mod cylinder;
 pub mod disk;
 pub mod interaction;
 pub mod mesh;
 pub mod mesh_io;
 pub mod ray;
+pub mod serialized;
 pub mod shape;
 pub mod sphere;
 

@@ -1,11 +1,12 @@
 //! A shape: geometry plus the material and (optionally) the area emitter
 //! attached to it.
 
+use super::cylinder::Cylinder;
 use super::disk::Disk;
 use super::interaction::SurfaceInteraction;
 use super::mesh::{Mesh, PositionSample, area_pdf_to_solid_angle};
 use super::sphere::{DirectionSample, Sphere};
-use crate::math::Frame;
+use crate::math::{Frame, Transform};
 use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]
@@ -13,6 +14,7 @@ pub enum ShapeGeometry {
     Mesh(Mesh),
     Sphere(Sphere),
     Disk(Disk),
+    Cylinder(Cylinder),
 }
 
 #[derive(Clone, Debug)]
@@ -30,7 +32,7 @@ impl Shape {
     pub fn primitive_count(&self) -> usize {
         match &self.geometry {
             ShapeGeometry::Mesh(m) => m.triangles.len(),
-            ShapeGeometry::Sphere(_) | ShapeGeometry::Disk(_) => 1,
+            ShapeGeometry::Sphere(_) | ShapeGeometry::Disk(_) | ShapeGeometry::Cylinder(_) => 1,
         }
     }
 
@@ -39,13 +41,14 @@ impl Shape {
             ShapeGeometry::Mesh(m) => m.area(),
             ShapeGeometry::Sphere(s) => s.area(),
             ShapeGeometry::Disk(d) => d.area,
+            ShapeGeometry::Cylinder(c) => c.area(),
         }
     }
 
     /// The full interaction at a hit found by the accelerator, with the
     /// barycentrics (b1, b2) it reported for a triangle.
     pub fn interaction(&self, shape_index: u32, prim: u32, ray_o: Vec3, ray_d: Vec3, t: f32, bary: (f32, f32)) -> SurfaceInteraction {
-        let (p, n, sh_n, uv) = match &self.geometry {
+        let (p, n, sh_n, uv, bary) = match &self.geometry {
             ShapeGeometry::Mesh(m) => {
                 let i = prim as usize;
                 let [a, b, c] = m.vertices(i);
@@ -58,25 +61,54 @@ impl Shape {
                 let p = a + e1 * b1 + e2 * b2;
                 let n = m.face_normal(i);
                 let (sh_n, uv) = m.shading(i, b1, b2, n);
-                (p, n, sh_n, uv)
+                (p, n, sh_n, uv, Vec2::new(b1, b2))
             }
             ShapeGeometry::Sphere(s) => {
                 let p = ray_o + ray_d * t;
                 // Project onto the surface to remove the error of o + t·d.
                 let p = s.center + (p - s.center).normalize_or_zero() * s.radius;
                 let n = s.normal_at(p);
-                (p, n, n, s.uv_at(p))
+                (p, n, n, s.uv_at(p), Vec2::ZERO)
             }
             ShapeGeometry::Disk(d) => {
                 let p = ray_o + ray_d * t;
-                (p, d.normal, d.normal, d.uv_at(p))
+                (p, d.normal, d.normal, d.uv_at(p), Vec2::ZERO)
+            }
+            ShapeGeometry::Cylinder(c) => {
+                let (p, n, uv, _) = c.surface(ray_o + ray_d * t);
+                (p, n, n, uv, Vec2::ZERO)
             }
         };
         let frame = match self.tangent_frame.then(|| self.dp_du(prim, p)).flatten() {
             Some(dp_du) => Frame::from_normal_and_tangent(sh_n, dp_du),
             None => Frame::from_normal(sh_n),
         };
-        SurfaceInteraction { p, t, n, frame, uv, shape: shape_index, wi: frame.to_local(-ray_d) }
+        SurfaceInteraction { p, t, n, frame, uv, shape: shape_index, prim, bary, wi: frame.to_local(-ray_d) }
+    }
+
+    /// As [`Shape::interaction`] for a shape of a shape group placed by an
+    /// instance with group-to-world transform `to_world`: the hit is found
+    /// in the group's space (the ray mapped there) and moved to world space,
+    /// normals by the inverse transpose, as Mitsuba's `instance` does.
+    pub fn interaction_instanced(
+        &self,
+        to_world: &Transform,
+        shape_index: u32,
+        prim: u32,
+        ray_o: Vec3,
+        ray_d: Vec3,
+        t: f32,
+        bary: (f32, f32),
+    ) -> SurfaceInteraction {
+        let local = self.interaction(shape_index, prim, to_world.inverse_point(ray_o), to_world.inverse_vector(ray_d), t, bary);
+        let n = to_world.normal(local.n).normalize_or_zero();
+        let sh_n = to_world.normal(local.frame.n).normalize_or_zero();
+        let frame = if self.tangent_frame {
+            Frame::from_normal_and_tangent(sh_n, to_world.vector(local.frame.s))
+        } else {
+            Frame::from_normal(sh_n)
+        };
+        SurfaceInteraction { p: to_world.point(local.p), t, n, frame, wi: frame.to_local(-ray_d), ..local }
     }
 
     /// ∂p/∂u at `p` on primitive `prim`, with Mitsuba's parametrisations:
@@ -93,6 +125,7 @@ impl Shape {
                 let l = d.to_world.inverse_point(p);
                 Some(d.to_world.vector(Vec3::new(l.x, l.y, 0.0)))
             }
+            ShapeGeometry::Cylinder(c) => Some(c.surface(p).3),
         }
     }
 
@@ -102,6 +135,7 @@ impl Shape {
             ShapeGeometry::Sphere(s) => Some(s.sample_position(u)),
             ShapeGeometry::Mesh(m) => m.sample_position(u),
             ShapeGeometry::Disk(d) => Some(d.sample_position(u)),
+            ShapeGeometry::Cylinder(c) => Some(c.sample_position(u)),
         }
     }
 
@@ -111,6 +145,7 @@ impl Shape {
             ShapeGeometry::Sphere(s) => return s.sample_direction(p, u),
             ShapeGeometry::Mesh(m) => m.sample_position(u)?,
             ShapeGeometry::Disk(d) => d.sample_position(u),
+            ShapeGeometry::Cylinder(c) => c.sample_position(u),
         };
         ps.towards(p)
     }

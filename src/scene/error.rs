@@ -38,11 +38,28 @@ impl Location {
 
     /// The location of a byte offset in the file.
     pub fn at_byte(file: &Arc<SourceFile>, byte: usize) -> Location {
-        let text = &file.text[..byte.min(file.text.len())];
-        let line = text.matches('\n').count() as u32 + 1;
-        let line_start = text.rfind('\n').map_or(0, |i| i + 1);
-        let col = text[line_start..].chars().count() as u32 + 1;
-        Location::new(file, line, col)
+        use std::cell::RefCell;
+        use std::sync::Weak;
+        // Line starts of the file last asked about, so that locating every
+        // element of a large file (10 000 instances) is not quadratic.
+        thread_local! {
+            static LINES: RefCell<Option<(Weak<SourceFile>, Vec<usize>)>> = const { RefCell::new(None) };
+        }
+        let byte = byte.min(file.text.len());
+        let (line_index, line_start) = LINES.with(|cache| {
+            let mut cache = cache.borrow_mut();
+            let fresh = !matches!(&*cache, Some((w, _)) if w.upgrade().is_some_and(|f| Arc::ptr_eq(&f, file)));
+            if fresh {
+                let starts = std::iter::once(0).chain(file.text.bytes().enumerate().filter(|&(_, b)| b == b'\n').map(|(i, _)| i + 1)).collect();
+                *cache = Some((Arc::downgrade(file), starts));
+            }
+            let starts = cache.as_ref().map_or(&[][..], |(_, s)| s.as_slice());
+            // The last line start at or before `byte`.
+            let i = starts.partition_point(|&s| s <= byte).max(1) - 1;
+            (i, starts.get(i).copied().unwrap_or(0))
+        });
+        let col = file.text.get(line_start..byte).map_or(0, |t| t.chars().count()) as u32 + 1;
+        Location::new(file, line_index as u32 + 1, col)
     }
 
     pub fn source_line(&self) -> &str {
@@ -108,6 +125,25 @@ impl std::error::Error for SceneError {}
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The cached line table answers like a scan from the start, for
+    /// every byte, with two files asked about in turn.
+    #[test]
+    fn locations_match_a_scan_from_the_start() {
+        let a = Arc::new(SourceFile::new("a.xml".into(), "<scene>\n  <bsdf/>\n\n é<x/>\nlast".into()));
+        let b = Arc::new(SourceFile::new("b.xml".into(), "\n\nxy\n".into()));
+        for _ in 0..2 {
+            for f in [&a, &b] {
+                for (byte, _) in f.text.char_indices().chain([(f.text.len(), ' ')]) {
+                    let before = &f.text[..byte];
+                    let line = before.matches('\n').count() as u32 + 1;
+                    let col = before[before.rfind('\n').map_or(0, |i| i + 1)..].chars().count() as u32 + 1;
+                    let loc = Location::at_byte(f, byte);
+                    assert_eq!((loc.line, loc.col), (line, col), "{} byte {byte}", f.path.display());
+                }
+            }
+        }
+    }
 
     #[test]
     fn display_quotes_the_line_with_a_caret() {

@@ -12,9 +12,11 @@ use crate::bsdf::{Bsdf, Conductor, Lobe, Dielectric, Diffuse, Plastic, Polarizer
 use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, EnvironmentMap, PointLight, Projector, SpotLight};
 use crate::film::{FilmSpec, Filter, FilterKind};
 use crate::geometry::accel::Accel;
+use crate::geometry::cylinder::Cylinder;
 use crate::geometry::disk::Disk;
 use crate::geometry::mesh::Mesh;
 use crate::geometry::mesh_io;
+use crate::geometry::serialized;
 use crate::geometry::sphere::Sphere;
 use crate::geometry::{Shape, ShapeGeometry};
 use crate::integrator::{Direct, Integrator, ParticleTracer, PathTracer};
@@ -24,15 +26,15 @@ use crate::sensor::perspective::{focal_length_fov, horizontal_fov, parse_focal_l
 use crate::sensor::{Camera, Orthographic, Perspective, ThinLens};
 use crate::spectrum::{Emission, Rgb};
 use crate::texture::bitmap::{self, Bitmap};
-use crate::texture::{Checkerboard, Texture, uv_transform};
+use crate::texture::{Checkerboard, MeshAttributeTexture, Texture, uv_transform};
 use glam::{Mat4, Vec3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-pub const SHAPES: [&str; 6] = ["rectangle", "cube", "disk", "sphere", "obj", "ply"];
+pub const SHAPES: [&str; 10] = ["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "shapegroup", "instance"];
 pub const BSDFS: [&str; 8] = ["conductor", "dielectric", "diffuse", "plastic", "polarizer", "retarder", "thindielectric", "twosided"];
-pub const TEXTURES: [&str; 2] = ["bitmap", "checkerboard"];
+pub const TEXTURES: [&str; 3] = ["bitmap", "checkerboard", "mesh_attribute"];
 pub const EMITTERS: [&str; 7] = ["area", "point", "spot", "constant", "directional", "envmap", "projector"];
 pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
@@ -69,6 +71,18 @@ struct Loader {
     shapes: Vec<Shape>,
     emitters: Vec<Emitter>,
     environment: Option<u32>,
+    /// Shapes traced directly (the others belong to shape groups).
+    top_shapes: Vec<u32>,
+    /// Members (shape indices) of each `shapegroup`, its index by node.
+    groups: Vec<Vec<u32>>,
+    group_index: HashMap<*const Node, u32>,
+    /// `instance`s: group-to-world transform and group.
+    instances: Vec<(Transform, u32)>,
+    /// Building the members of a shape group.
+    in_group: bool,
+    /// `mesh_attribute` textures, resolved against the meshes once all
+    /// are loaded, with the location of their `name`.
+    mesh_attribute_textures: std::cell::RefCell<Vec<(Arc<MeshAttributeTexture>, super::Location)>>,
 }
 
 fn collect_ids(node: &Node, ids: &mut HashMap<String, Arc<Node>>) -> Result<()> {
@@ -148,7 +162,20 @@ impl Loader {
     fn new(root: &Node) -> Result<Loader> {
         let mut ids = HashMap::new();
         collect_ids(root, &mut ids)?;
-        Ok(Loader { ids, bsdf_cache: HashMap::new(), bsdfs: vec![], shapes: vec![], emitters: vec![], environment: None })
+        Ok(Loader {
+            ids,
+            bsdf_cache: HashMap::new(),
+            bsdfs: vec![],
+            shapes: vec![],
+            emitters: vec![],
+            environment: None,
+            top_shapes: vec![],
+            groups: vec![],
+            group_index: HashMap::new(),
+            instances: vec![],
+            in_group: false,
+            mesh_attribute_textures: Default::default(),
+        })
     }
 
     fn resolve(&self, child: &Child) -> Result<Arc<Node>> {
@@ -252,7 +279,8 @@ impl Loader {
                     .with_choices(&["area", "point", "spot", "projector"]));
             }
         }
-        let accel = Accel::build(&self.shapes);
+        self.resolve_mesh_attributes()?;
+        let accel = Accel::build_instanced(&self.shapes, &self.top_shapes, &self.groups, &self.instances);
         Ok(Scene {
             shapes: self.shapes,
             bsdfs: self.bsdfs,
@@ -270,6 +298,17 @@ impl Loader {
     // ---------------------------------------------------------------- shapes
 
     fn shape(&mut self, node: &Arc<Node>) -> Result<()> {
+        match node.plugin.as_str() {
+            "shapegroup" if self.in_group => {
+                return Err(SceneError::at(&node.loc, "a shapegroup cannot contain another shapegroup (Mitsuba does not nest them)"));
+            }
+            "instance" if self.in_group => {
+                return Err(SceneError::at(&node.loc, "a shapegroup cannot contain an instance (Mitsuba does not nest instancing)"));
+            }
+            "shapegroup" => return self.shapegroup(node).map(|_| ()),
+            "instance" => return self.instance(node),
+            _ => {}
+        }
         let props = Props::new(node);
         let to_world = props.transform("to_world")?;
         let flip = props.bool("flip_normals", false)?;
@@ -278,7 +317,17 @@ impl Loader {
             "cube" => ShapeGeometry::Mesh(Mesh::cube(&to_world, flip)),
             "disk" => ShapeGeometry::Disk(Disk::new(to_world, flip)),
             "sphere" => ShapeGeometry::Sphere(self.sphere(&props, &to_world, flip)?),
-            "obj" | "ply" => ShapeGeometry::Mesh(self.mesh_file(&props, &to_world, flip)?),
+            "cylinder" => {
+                let p0 = props.vec3("p0", Vec3::ZERO)?;
+                let p1 = props.vec3("p1", Vec3::Z)?;
+                let radius = props.float_checked("radius", 1.0, |r| r > 0.0 && r.is_finite(), "positive")?;
+                let cylinder = Cylinder::new(&to_world, p0, p1, radius, flip).ok_or_else(|| {
+                    let loc = node.props.iter().find(|p| p.name == "to_world").map_or(&node.loc, |p| &p.loc);
+                    SceneError::at(loc, "a cylinder needs p0 ≠ p1 and a to_world that is a similarity (rotation, translation, uniform scale, no mirror)")
+                })?;
+                ShapeGeometry::Cylinder(cylinder)
+            }
+            "obj" | "ply" | "serialized" => ShapeGeometry::Mesh(self.mesh_file(&props, &to_world, flip)?),
             _ => return Err(unknown_plugin(node, &SHAPES)),
         };
         let shape_index = self.shapes.len() as u32;
@@ -302,6 +351,10 @@ impl Loader {
         if emitter_nodes.len() > 1 {
             return Err(SceneError::at(&emitter_nodes[1].loc, "a shape takes at most one emitter"));
         }
+        if let (true, Some(e)) = (self.in_group, emitter_nodes.first()) {
+            return Err(SceneError::at(&e.loc, "a shape inside a shapegroup cannot emit: Mitsuba does not support instancing of emitters")
+                .with_help("place the emitting shape outside the shapegroup, once per copy"));
+        }
         let bsdf = match bsdf_nodes.first() {
             Some(b) => self.bsdf(b)?,
             None => {
@@ -322,7 +375,90 @@ impl Loader {
         if shape.area() <= 0.0 || !shape.area().is_finite() {
             return Err(SceneError::at(&node.loc, format!("this {} has zero or non-finite surface area", node.plugin)));
         }
+        if !self.in_group {
+            self.top_shapes.push(self.shapes.len() as u32);
+        }
         self.shapes.push(shape);
+        Ok(())
+    }
+
+    /// Points every `mesh_attribute` texture at its attribute on each mesh;
+    /// an attribute no mesh has, or of 2 or more than 3 components, is an error.
+    fn resolve_mesh_attributes(&self) -> Result<()> {
+        for (tex, loc) in self.mesh_attribute_textures.borrow().iter() {
+            let mut known = vec![];
+            let table: Vec<_> = self
+                .shapes
+                .iter()
+                .map(|s| match &s.geometry {
+                    ShapeGeometry::Mesh(m) => {
+                        known.extend(m.attributes.iter().map(|(n, _)| n.as_str()));
+                        m.attributes.iter().find(|(n, _)| *n == tex.name).map(|(_, a)| a.clone())
+                    }
+                    _ => None,
+                })
+                .collect();
+            if let Some(a) = table.iter().flatten().find(|a| a.dims != 1 && a.dims != 3) {
+                return Err(SceneError::at(loc, format!("mesh attribute \"{}\" has {} components; a texture reads 1 or 3", tex.name, a.dims)));
+            }
+            if table.iter().all(Option::is_none) {
+                known.sort();
+                known.dedup();
+                let e = SceneError::at(loc, format!("no mesh in the scene has the attribute \"{}\"", tex.name));
+                return Err(if known.is_empty() { e.with_help("no mesh in this scene has attributes (PLY vertex or face properties)") } else { e.with_choices(&known) });
+            }
+            let _ = tex.table.set(table);
+        }
+        Ok(())
+    }
+
+    /// Mitsuba's `shapegroup`: shapes that are not rendered themselves but
+    /// placed by `instance`s; built once however many instances use it.
+    fn shapegroup(&mut self, node: &Arc<Node>) -> Result<u32> {
+        let key = Arc::as_ptr(node);
+        if let Some(&g) = self.group_index.get(&key) {
+            return Ok(g);
+        }
+        let props = Props::new(node);
+        let mut members = vec![];
+        self.in_group = true;
+        let mut built = || -> Result<()> {
+            for c in props.children_of(Kind::Shape) {
+                let member = self.resolve(c)?;
+                let first = self.shapes.len() as u32;
+                self.shape(&member)?;
+                members.extend(first..self.shapes.len() as u32);
+            }
+            props.finish()
+        };
+        let result = built();
+        self.in_group = false;
+        result?;
+        self.groups.push(members);
+        let g = self.groups.len() as u32 - 1;
+        self.group_index.insert(key, g);
+        Ok(g)
+    }
+
+    /// Mitsuba's `instance`: a `<ref>` to a shapegroup placed by `to_world`.
+    fn instance(&mut self, node: &Arc<Node>) -> Result<()> {
+        let props = Props::new(node);
+        let to_world = props.transform("to_world")?;
+        let children = props.children_of(Kind::Shape);
+        let mut targets = vec![];
+        for c in children.iter().copied().chain(props.unnamed_refs()) {
+            targets.push((c, self.resolve(c)?));
+        }
+        let [(child, group)] = targets.as_slice() else {
+            return Err(SceneError::at(&node.loc, format!("an instance takes exactly one shapegroup (a <ref id=\"…\"/> to it), found {}", targets.len())));
+        };
+        if group.kind != Kind::Shape || group.plugin != "shapegroup" {
+            let what = if group.kind == Kind::Shape { format!("a \"{}\" shape", group.plugin) } else { format!("a <{}>", group.kind.tag()) };
+            return Err(SceneError::at(&child.loc, format!("an instance must refer to a shapegroup, not to {what}")).with_choices(&["shapegroup"]));
+        }
+        props.finish()?;
+        let g = self.shapegroup(group)?;
+        self.instances.push((to_world, g));
         Ok(())
     }
 
@@ -356,12 +492,22 @@ impl Loader {
     fn mesh_file(&self, props: &Props, to_world: &Transform, flip: bool) -> Result<Mesh> {
         let node = props.node;
         let filename = props.string_req("filename")?;
-        let face_normals = props.bool("face_normals", false)?;
+        let mut face_normals = props.bool("face_normals", false)?;
         let flip_tex = if node.plugin == "obj" { props.bool("flip_tex_coords", true)? } else { false };
         let path = resolve_path(node, filename);
         let file_loc = node.props.iter().find(|p| p.name == "filename").map_or(&node.loc, |p| &p.loc);
-        let raw = if node.plugin == "obj" { mesh_io::read_obj(&path) } else { mesh_io::read_ply(&path) }
-            .map_err(|e| with_search_help(SceneError::at(file_loc, e), node, filename))?;
+        let raw = match node.plugin.as_str() {
+            "obj" => mesh_io::read_obj(&path),
+            "serialized" => {
+                let index = props.int_checked("shape_index", 0, |v| (0..=u32::MAX as i64).contains(&v), "a non-negative integer")?;
+                serialized::read_serialized(&path, index as u32).map(|s| {
+                    face_normals |= s.face_normals;
+                    s.mesh
+                })
+            }
+            _ => mesh_io::read_ply(&path),
+        }
+        .map_err(|e| with_search_help(SceneError::at(file_loc, e), node, filename))?;
         let positions: Vec<Vec3> = raw.positions.iter().map(|&p| to_world.point(p)).collect();
         let normals = if face_normals {
             None
@@ -373,7 +519,10 @@ impl Loader {
         };
         // tobj applied Mitsuba's default flip already; undo it if asked.
         let uvs = raw.uvs.map(|uvs| if flip_tex { uvs } else { uvs.into_iter().map(|uv| glam::Vec2::new(uv.x, 1.0 - uv.y)).collect() });
-        Ok(Mesh::new(positions, normals, uvs, raw.triangles, flip))
+        let attributes = raw.attributes.iter().map(|(n, a)| (n.clone(), Arc::new(a.to_corners(&raw.triangles)))).collect();
+        let mut mesh = Mesh::new(positions, normals, uvs, raw.triangles, flip);
+        mesh.attributes = attributes;
+        Ok(mesh)
     }
 
     // ------------------------------------------------------------ materials
@@ -545,6 +694,18 @@ impl Loader {
                     return Err(SceneError::at(loc, format!("image {} is empty", path.display())));
                 }
                 Texture::Bitmap(Arc::new(Bitmap { width, height, texels, filter, wrap, to_uv }))
+            }
+            "mesh_attribute" => {
+                let name = props.string_req("name")?;
+                let loc = node.props.iter().find(|p| p.name == "name").map_or(&node.loc, |p| &p.loc);
+                if !(name.starts_with("vertex_") || name.starts_with("face_")) {
+                    return Err(SceneError::at(loc, format!("mesh attribute name \"{name}\" must start with \"vertex_\" or \"face_\""))
+                        .with_help("e.g. \"vertex_color\" or \"face_color\""));
+                }
+                let scale = props.float_checked("scale", 1.0, f32::is_finite, "a finite number")?;
+                let tex = Arc::new(MeshAttributeTexture { name: name.to_string(), scale, table: Default::default() });
+                self.mesh_attribute_textures.borrow_mut().push((tex.clone(), loc.clone()));
+                Texture::MeshAttribute(tex)
             }
             _ => return Err(unknown_plugin(node, &TEXTURES)),
         };

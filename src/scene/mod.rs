@@ -53,7 +53,12 @@ impl Scene {
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
         let hit = self.accel.intersect(ray)?;
-        Some(self.shapes[hit.shape as usize].interaction(hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary))
+        let shape = &self.shapes[hit.shape as usize];
+        if hit.instance != crate::geometry::accel::NO_INSTANCE {
+            let to_world = &self.accel.instance(hit.instance).to_world;
+            return Some(shape.interaction_instanced(to_world, hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary));
+        }
+        Some(shape.interaction(hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary))
     }
 
     /// The first hit on a shape that does not emit: Mitsuba's

@@ -6,13 +6,40 @@
 
 pub mod bitmap;
 pub mod checkerboard;
+pub mod mesh_attribute;
 
 pub use bitmap::Bitmap;
 pub use checkerboard::Checkerboard;
+pub use mesh_attribute::MeshAttributeTexture;
 
 use crate::spectrum::{ListedSpectrum, Rgb, Spectrum, UpliftCache};
 use glam::{Affine2, Mat2, Mat4, Vec2};
 use std::sync::Arc;
+
+/// Where a texture is evaluated: the surface's uv and, for textures that
+/// read mesh data (`mesh_attribute`), the shape, triangle and barycentrics
+/// of the hit. A bare uv converts into one with no shape.
+#[derive(Clone, Copy, Debug)]
+pub struct TexPoint {
+    pub uv: Vec2,
+    pub shape: u32,
+    pub prim: u32,
+    pub bary: Vec2,
+}
+
+impl From<Vec2> for TexPoint {
+    #[inline]
+    fn from(uv: Vec2) -> TexPoint {
+        TexPoint { uv, shape: u32::MAX, prim: 0, bary: Vec2::ZERO }
+    }
+}
+
+impl From<&crate::geometry::SurfaceInteraction> for TexPoint {
+    #[inline]
+    fn from(si: &crate::geometry::SurfaceInteraction) -> TexPoint {
+        TexPoint { uv: si.uv, shape: si.shape, prim: si.prim, bary: si.bary }
+    }
+}
 
 #[derive(Clone, Debug)]
 pub enum Texture {
@@ -23,21 +50,25 @@ pub enum Texture {
     Spectral { rgb: Rgb, spectrum: Arc<ListedSpectrum> },
     Bitmap(Arc<Bitmap>),
     Checkerboard(Checkerboard),
+    MeshAttribute(Arc<MeshAttributeTexture>),
 }
 
 impl Texture {
     #[inline]
-    pub fn eval(&self, uv: Vec2) -> Rgb {
+    pub fn eval(&self, at: impl Into<TexPoint>) -> Rgb {
+        let at = at.into();
+        let uv = at.uv;
         match self {
             Texture::Constant(c, _) | Texture::Spectral { rgb: c, .. } => *c,
             Texture::Bitmap(b) => b.eval(uv),
             Texture::Checkerboard(c) => c.eval(uv),
+            Texture::MeshAttribute(m) => m.eval(&at),
         }
     }
 
     /// The texture as a reflectance at the path's wavelengths.
     #[inline]
-    pub fn eval_spectrum<S: Spectrum>(&self, uv: Vec2, wl: &S::Wavelengths) -> S {
+    pub fn eval_spectrum<S: Spectrum>(&self, uv: impl Into<TexPoint>, wl: &S::Wavelengths) -> S {
         match self {
             Texture::Constant(rgb, cache) => S::from_reflectance_cached(*rgb, cache, wl),
             Texture::Spectral { rgb, spectrum } => S::from_function(*rgb, |l| spectrum.eval(l), wl),
@@ -53,7 +84,7 @@ impl Texture {
     /// As [`Texture::eval_spectrum`], with `f` applied to the reflectance
     /// (per channel, or per wavelength).
     #[inline]
-    pub fn eval_spectrum_map<S: Spectrum>(&self, uv: Vec2, wl: &S::Wavelengths, f: impl Fn(f32) -> f32) -> S {
+    pub fn eval_spectrum_map<S: Spectrum>(&self, uv: impl Into<TexPoint>, wl: &S::Wavelengths, f: impl Fn(f32) -> f32) -> S {
         match self {
             Texture::Spectral { rgb, spectrum } => S::from_function(rgb.map(&f), |l| f(spectrum.eval(l)), wl),
             _ => S::from_reflectance(self.eval(uv).map(f), wl),
@@ -67,6 +98,7 @@ impl Texture {
             Texture::Constant(c, _) | Texture::Spectral { rgb: c, .. } => c.mean(),
             Texture::Bitmap(b) => b.mean(),
             Texture::Checkerboard(c) => 0.5 * (c.color0.mean() + c.color1.mean()),
+            Texture::MeshAttribute(m) => m.stats().0,
         }
     }
 
@@ -77,6 +109,7 @@ impl Texture {
             Texture::Spectral { spectrum, .. } => spectrum.samples().iter().fold(0.0, |m, &(_, v)| m.max(v)),
             Texture::Bitmap(b) => b.max_value(),
             Texture::Checkerboard(c) => c.color0.0.into_iter().chain(c.color1.0).fold(0.0, f32::max),
+            Texture::MeshAttribute(m) => m.stats().1,
         }
     }
 }
