@@ -15,13 +15,13 @@
 //!
 //! | AOV type | channels | value (0 where the ray misses) |
 //! |---|---|---|
-//! | `depth` | `NAME.T` | distance from the pinhole (perspective) or the near plane (orthographic) |
+//! | `depth` | `NAME.T` | distance along the camera ray from where it starts, on the near clip plane (Mitsuba's `si.t`) |
 //! | `position` | `NAME.X/Y/Z` | world-space hit point |
 //! | `uv` | `NAME.U/V` | surface UV coordinates |
 //! | `geo_normal` | `NAME.X/Y/Z` | geometric normal (after `flip_normals`) |
 //! | `sh_normal` | `NAME.X/Y/Z` | shading normal |
 //! | `albedo` | `NAME.R/G/B` | diffuse reflectance (`diffuse`: reflectance, `plastic`: diffuse_reflectance, others: f(wi, n)·π) |
-//! | `prim_index` | `NAME.I` | triangle index within its mesh (0 for spheres, disks) |
+//! | `prim_index` | `NAME.I` | triangle index within its mesh (0 for spheres, disks; a `rectangle` is two triangles, 0 and 1, where Mitsuba has one primitive) |
 //! | `shape_index` | `NAME.I` | 1 + the shape's index in the scene (in file order) |
 //!
 //! Like colour, every channel is filtered: at an object's edge a pixel holds
@@ -51,7 +51,6 @@ use crate::film::srgb_to_xyz;
 use crate::geometry::Ray;
 use crate::sampler::Sampler;
 use crate::scene::Scene;
-use crate::sensor::Camera;
 use crate::spectrum::{Rgb, Spectrum};
 use glam::Vec3;
 
@@ -147,7 +146,7 @@ impl Aov {
         for (_, kind) in &self.aovs {
             let values: [f32; 3] = match (&si, hit) {
                 (Some(si), Some(h)) => match kind {
-                    AovKind::Depth => [depth(scene, &ray, h.t, si.p), 0.0, 0.0],
+                    AovKind::Depth => [h.t, 0.0, 0.0],
                     AovKind::Position => si.p.to_array(),
                     AovKind::Uv => [si.uv.x, si.uv.y, 0.0],
                     AovKind::GeoNormal => si.n.to_array(),
@@ -201,19 +200,6 @@ impl Moment {
             *m2 = v * v;
         }
         result
-    }
-}
-
-/// Distance to the hit as Mitsuba's `si.t` measures it: from the pinhole
-/// of a perspective camera (Snell's rays start on the near plane), from the
-/// near plane of an orthographic one.
-fn depth(scene: &Scene, ray: &Ray, t: f32, p: Vec3) -> f32 {
-    match &scene.camera {
-        Camera::Perspective(c) => (p - c.origin()).length(),
-        Camera::Orthographic(_) => {
-            let _ = ray;
-            t
-        }
     }
 }
 
