@@ -56,6 +56,17 @@ pub fn load_file(path: &Path, options: &LoadOptions) -> Result<Scene> {
     Loader::new(&root)?.build(&root, options)
 }
 
+/// As [`load_file`], with the film made `width` pixels wide and its height
+/// scaled to keep the aspect ratio (rounded, at least 1; any crop window
+/// reset to the whole film): quick low-resolution renders of scenes whose
+/// film size is fixed in the file.
+pub fn load_file_at_width(path: &Path, options: &LoadOptions, width: u32) -> Result<Scene> {
+    let root = xml::parse_file(path, &options.params)?;
+    let mut loader = Loader::new(&root)?;
+    loader.film_width = Some(width.max(1));
+    loader.build(&root, options)
+}
+
 /// Loads scene text; relative file names resolve against `path`'s folder.
 pub fn load_str(path: &Path, text: &str, options: &LoadOptions) -> Result<Scene> {
     let root = xml::parse_str(path, text, &options.params)?;
@@ -69,6 +80,8 @@ struct Loader {
     shapes: Vec<Shape>,
     emitters: Vec<Emitter>,
     environment: Option<u32>,
+    /// Film width forced by [`load_file_at_width`].
+    film_width: Option<u32>,
 }
 
 fn collect_ids(node: &Node, ids: &mut HashMap<String, Arc<Node>>) -> Result<()> {
@@ -105,7 +118,7 @@ impl Loader {
     fn new(root: &Node) -> Result<Loader> {
         let mut ids = HashMap::new();
         collect_ids(root, &mut ids)?;
-        Ok(Loader { ids, bsdf_cache: HashMap::new(), bsdfs: vec![], shapes: vec![], emitters: vec![], environment: None })
+        Ok(Loader { ids, bsdf_cache: HashMap::new(), bsdfs: vec![], shapes: vec![], emitters: vec![], environment: None, film_width: None })
     }
 
     fn resolve(&self, child: &Child) -> Result<Arc<Node>> {
@@ -574,7 +587,10 @@ impl Loader {
         }
         let film = match films.first() {
             Some(f) => self.film(f)?,
-            None => FilmSpec::new(768, 576, Filter::gaussian(0.5)),
+            None => match self.film_width {
+                Some(w) => FilmSpec::new(w, ((576.0 * w as f64 / 768.0).round() as u32).max(1), Filter::gaussian(0.5)),
+                None => FilmSpec::new(768, 576, Filter::gaussian(0.5)),
+            },
         };
         let sampler = match samplers.first() {
             Some(s) => self.sampler(s)?,
@@ -622,6 +638,10 @@ impl Loader {
             _ => return Err(SceneError::at(&filters[1].loc, "a film takes at most one <rfilter>")),
         };
         props.finish()?;
+        if let Some(w) = self.film_width {
+            let h = ((height as f64 * w as f64 / width as f64).round() as u32).max(1);
+            return Ok(FilmSpec { pixel_format, ..FilmSpec::new(w, h, filter) });
+        }
         Ok(FilmSpec { crop: [crop_x, crop_y, crop_w, crop_h], pixel_format, ..FilmSpec::new(width, height, filter) })
     }
 
