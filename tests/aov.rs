@@ -310,3 +310,19 @@ fn aov_without_nested_integrator_has_a_black_image_and_spaced_names() {
     assert!(depth[center] > 3.0 && depth[center] < 4.5, "{}", depth[center]);
     assert_eq!(depth[0], 0.0);
 }
+
+#[test]
+fn load_at_width_keeps_the_aspect_ratio_and_resets_the_crop() {
+    let crop = r#"<integer name="crop_offset_x" value="4"/><integer name="crop_width" value="10"/>"#;
+    let path = temp("sized.xml");
+    std::fs::write(&path, small_scene(crop, "box", r#"<integrator type="path"/>"#)).expect("write scene");
+    let scene = snell::scene::loader::load_file_at_width(&path, &LoadOptions::default(), 20).expect("loads");
+    assert_eq!((scene.film.width, scene.film.height), (20, 15));
+    assert_eq!(scene.film.crop, [0, 0, 20, 15]);
+    let img = render(&scene);
+    assert_eq!((img.width, img.height), (20, 15));
+    // The same view: the aspect ratio and the field of view are the file's.
+    let full = render(&load(&small_scene("", "box", r#"<integrator type="path"/>"#)));
+    let lit = |img: &Image| img.pixels.iter().filter(|p| p[0] > 0.0).count() as f64 / img.pixels.len() as f64;
+    assert!((lit(&img) - lit(&full)).abs() < 0.05, "{} vs {}", lit(&img), lit(&full));
+}
