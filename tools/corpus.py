@@ -18,7 +18,8 @@ sides: Snell by `snell render SCENE --width W --spp N/passes --seed i
 --threads T` (its PFM output), Mitsuba (llvm_ad_rgb, else scalar_rgb) by
 loading the file, setting the film's size through mi.traverse, limiting
 Dr.Jit to T threads and calling mi.render(scene, spp=N/passes, seed=i). A
-scene's `spp` and `res` defaults, if it declares them, get --spp and --width.
+scene that declares or uses the parameters `spp` and `res` (itself or in a
+file it includes) gets them as N/passes and W (-D on Snell's command line).
 
 Comparison (main image R, G, B; Y for a luminance film): mean ratio
 Snell/Mitsuba per channel, and per 8x8-pixel block and channel
@@ -58,11 +59,31 @@ PIECES = {"include", "includes", "fragments"}
 LLVM_LIB = "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1"
 
 
-def scene_defaults(path):
+def scene_text(path, depth=0):
+    """The scene's text and that of the files it includes, comments removed."""
     try:
-        return set(re.findall(r'<default\s+name="([^"]+)"', open(path, errors="replace").read()))
+        text = re.sub(r"<!--.*?-->", "", open(path, errors="replace").read(), flags=re.S)
     except OSError:
-        return set()
+        return ""
+    if depth < 8:
+        for inc in re.findall(r'<include\s+filename="([^"$]+)"', text):
+            text += scene_text(os.path.join(os.path.dirname(path), inc), depth + 1)
+    return text
+
+
+def scene_params(path, values):
+    """Of `values` (name -> value), those the scene declares with <default>
+    or uses as $name (Mitsuba refuses parameters a scene does not use)."""
+    text = scene_text(path)
+    used = set(re.findall(r'<default\s+name="([^"]+)"', text)) | set(re.findall(r"\$(\w+)", text))
+    return {k: str(v) for k, v in values.items() if k in used}
+
+
+def mitsuba_error(e, scene):
+    msg = str(e) or repr(e)
+    msg = msg.replace(os.path.dirname(scene) + os.sep, "")
+    msg = re.sub(r"\[[\w.]+:\d+\]\s*", "", msg)
+    return short(msg, 200)
 
 
 def find_scenes(name_filter):
@@ -113,12 +134,11 @@ def worker_mitsuba(a):
             dr.set_thread_count(a.threads)
         except Exception:  # noqa: BLE001
             pass
-        defaults = scene_defaults(a.scene)
-        params = {k: v for k, v in {"spp": str(a.pass_spp), "res": str(a.width)}.items() if k in defaults}
+        params = scene_params(a.scene, {"spp": a.pass_spp, "res": a.width})
         try:
             scene = mi.load_file(a.scene, **params)
         except Exception as e:  # noqa: BLE001
-            out["error"] = short(str(e).splitlines()[-1] if str(e) else repr(e), 200)
+            out["error"] = mitsuba_error(e, a.scene)
             print(json.dumps(out))
             return
         out["loads"] = True
@@ -155,7 +175,7 @@ def worker_mitsuba(a):
         out["seconds"] = sorted(times)[len(times) // 2] * len(times)
         out["first_pass_seconds"] = times[0]
     except Exception as e:  # noqa: BLE001
-        out["error"] = short(repr(e), 200)
+        out["error"] = mitsuba_error(e, a.scene)
     print(json.dumps(out))
 
 
@@ -207,16 +227,15 @@ def worker_compare(a):
 def run_snell(args, scene, tmp):
     """k passes; returns dict with loads, renders, error, seconds, pfms, size."""
     res = {"loads": False, "renders": False, "error": "", "seconds": 0.0, "pfms": []}
-    defaults = scene_defaults(scene)
+    params = scene_params(scene, {"spp": args.pass_spp, "res": args.width})
     deadline = time.time() + args.timeout
     for i in range(args.passes):
         pfm = os.path.join(tmp, "snell_%d.pfm" % i)
         stats = os.path.join(tmp, "stats_%d.json" % i)
         cmd = [args.snell, "render", scene, "-o", pfm, "--spp", str(args.pass_spp), "--seed", str(i),
                "--threads", str(args.threads), "--width", str(args.width), "--stats", stats, "--quiet"]
-        for k, v in (("spp", args.pass_spp), ("res", args.width)):
-            if k in defaults:
-                cmd += ["-D", "%s=%s" % (k, v)]
+        for k, v in params.items():
+            cmd += ["-D", "%s=%s" % (k, v)]
         left = deadline - time.time()
         if left <= 0:
             res["error"] = "timeout (%g s)" % args.timeout
