@@ -326,3 +326,26 @@ fn load_at_width_keeps_the_aspect_ratio_and_resets_the_crop() {
     let lit = |img: &Image| img.pixels.iter().filter(|p| p[0] > 0.0).count() as f64 / img.pixels.len() as f64;
     assert!((lit(&img) - lit(&full)).abs() < 0.05, "{} vs {}", lit(&img), lit(&full));
 }
+
+#[test]
+fn cli_writes_aov_channels_and_rgba_png_at_a_forced_width() {
+    let (exr, png) = (temp("cli.exr"), temp("cli.png"));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_snell"))
+        .args(["render", &repo("tests/scenes/aov.xml").display().to_string(), "--spp", "2", "--width", "16", "-q"])
+        .args(["-o", &exr.display().to_string(), "-o", &png.display().to_string()])
+        .output()
+        .expect("runs");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let img = read_exr(&exr).expect("EXR");
+    assert_eq!((img.width, img.height), (16, 12));
+    assert_eq!(exr_channels(&exr), exr_channels(&repo("tests/references/aov.exr")));
+    let decoded = image::open(&png).expect("PNG");
+    assert_eq!((decoded.width(), decoded.height()), (16, 12));
+    assert!(decoded.color().has_alpha());
+    let bad = std::process::Command::new(env!("CARGO_BIN_EXE_snell"))
+        .args(["render", &repo("tests/scenes/aov.xml").display().to_string(), "--width", "0", "-q", "-o", &exr.display().to_string()])
+        .output()
+        .expect("runs");
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--width must be at least 1"));
+}
