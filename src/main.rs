@@ -34,6 +34,10 @@ struct RenderArgs {
     /// Samples per pixel (overrides the scene's sampler).
     #[arg(long)]
     spp: Option<u32>,
+    /// Render the film this many pixels wide, its height scaled to keep the
+    /// aspect ratio (any crop window reset): quick previews of any scene.
+    #[arg(long, value_name = "PIXELS")]
+    width: Option<u32>,
     /// Set a scene parameter declared with <default name=…>, as NAME=VALUE. Repeatable.
     #[arg(short = 'D', value_name = "NAME=VALUE")]
     define: Vec<String>,
@@ -107,6 +111,7 @@ fn default_render() -> anyhow::Result<RenderArgs> {
         scene,
         output: vec!["cornell-box.exr".into(), "cornell-box.png".into()],
         spp: None,
+        width: None,
         define: vec![],
         threads: 0,
         seed: None,
@@ -152,7 +157,11 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
 
     let load_start = std::time::Instant::now();
     let options = LoadOptions { params, spp: args.spp, seed: args.seed };
-    let scene = snell::load_file(&args.scene, &options)?;
+    let scene = match args.width {
+        Some(0) => anyhow::bail!("--width must be at least 1"),
+        Some(w) => snell::scene::loader::load_file_at_width(&args.scene, &options, w)?,
+        None => snell::load_file(&args.scene, &options)?,
+    };
     if polarized && matches!(scene.integrator, snell::integrator::Integrator::Particle(_)) {
         anyhow::bail!(
             "{}: the polarized modes need a camera-path integrator (path or direct); particle tracing (ptracer) does not carry polarization",

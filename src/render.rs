@@ -49,8 +49,8 @@ impl RenderStats {
     /// `samples` (camera samples, or light paths) rendered in `seconds`.
     fn new(scene: &Scene, threads: usize, seconds: f64, samples: f64, invalid_samples: u64) -> RenderStats {
         RenderStats {
-            width: scene.film.width,
-            height: scene.film.height,
+            width: scene.film.crop[2],
+            height: scene.film.crop[3],
             spp: scene.sampler.sample_count,
             threads,
             render_seconds: seconds,
@@ -84,10 +84,17 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
     }
     let threads = thread_count(options);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
-    let (w, h) = (scene.film.width, scene.film.height);
+    // The crop window (the whole film unless the scene crops): pixels are
+    // numbered within it, the camera sees the full film.
+    let [ox, oy, w, h] = scene.film.crop;
     let spp = scene.sampler.sample_count;
     let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
     let up = scene.camera.up();
+    // Further per-sample channels: alpha if the film has it, then the
+    // integrator's (AOVs, moments). None for a plain RGB render.
+    let alpha = scene.film.pixel_format.has_alpha();
+    let channel_names: Vec<String> = alpha.then(|| "A".to_string()).into_iter().chain(scene.integrator.channel_names()).collect();
+    let n_extra = channel_names.len();
 
     let mut tiles = vec![];
     for ty in (0..h).step_by(TILE as usize) {
@@ -97,7 +104,8 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
     }
     let bar = progress_bar(options, tiles.len() as u64);
     let invalid = AtomicU64::new(0);
-    let inv_size = Vec2::new(1.0 / w as f32, 1.0 / h as f32);
+    let inv_size = Vec2::new(1.0 / scene.film.width as f32, 1.0 / scene.film.height as f32);
+    let offset = Vec2::new(ox as f32, oy as f32);
 
     let start = Instant::now();
     let buffers: Vec<TileBuffer> = pool.install(|| {
@@ -113,15 +121,34 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
                 if S::POLARIZED {
                     buf = buf.with_stokes();
                 }
+                if n_extra > 0 {
+                    buf = buf.with_extra(n_extra);
+                }
+                let mut extra = vec![0.0f32; n_extra];
                 let mut bad = 0u64;
                 for y in ty..ty + th {
                     for x in tx..tx + tw {
-                        let mut sampler = Sampler::for_pixel(scene.sampler.seed, x, y);
+                        // Seeded by the pixel's place in the full film: a crop
+                        // renders the same samples as the full render there.
+                        let mut sampler = Sampler::for_pixel(scene.sampler.seed, x + ox, y + oy);
                         for _ in 0..spp {
                             let mut wl = S::sample_wavelengths(sampler.next_1d());
                             let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                            let ray = scene.camera.sample_ray(pos * inv_size, &mut sampler);
-                            let l: S = scene.integrator.li(scene, ray, &mut sampler, &mut wl);
+                            let ray = scene.camera.sample_ray((pos + offset) * inv_size, &mut sampler);
+                            let l: S = if n_extra == 0 {
+                                scene.integrator.li(scene, ray, &mut sampler, &mut wl)
+                            } else {
+                                let first = alpha as usize;
+                                let (l, a) = scene.integrator.sample(scene, ray, &mut sampler, &mut wl, &mut extra[first..]);
+                                if alpha {
+                                    extra[0] = a;
+                                }
+                                if !extra.iter().all(|v| v.is_finite()) {
+                                    extra.fill(0.0);
+                                }
+                                buf.splat_extra(&scene.film.filter, (pos.x, pos.y), &extra);
+                                l
+                            };
                             let mut rgb = l.to_rgb(&wl);
                             // S1–S3 only in the polarized modes (a constant: no cost otherwise).
                             let mut s123 = if S::POLARIZED { camera_stokes(&l, ray.d, up, &wl) } else { [Rgb::BLACK; 3] };
@@ -148,7 +175,7 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
     let seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
 
-    let mut film = Film::new(w, h);
+    let mut film = Film::new(w, h).with_channels(scene.film.pixel_format, channel_names);
     if S::POLARIZED {
         film = film.with_stokes();
     }
@@ -189,7 +216,9 @@ const PARTICLE_CHUNKS: u64 = 256;
 fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options: &RenderOptions) -> anyhow::Result<(Image, RenderStats)> {
     let threads = thread_count(options);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
-    let (w, h) = (scene.film.width, scene.film.height);
+    // Paths land anywhere on the full film; only the crop window is kept.
+    let [ox, oy, w, h] = scene.film.crop;
+    let offset = Vec2::new(ox as f32, oy as f32);
     let spp = scene.sampler.sample_count;
     let total = w as u64 * h as u64 * spp as u64;
     let chunks = PARTICLE_CHUNKS.min(total.max(1));
@@ -214,7 +243,7 @@ fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options
                         let mut wl = S::sample_wavelengths(sampler.next_1d());
                         tracer.trace::<S>(scene, &mut sampler, &mut wl, &mut |pos, rgb| {
                             if rgb.is_finite() {
-                                splat_normalized(&mut buf, bw, border, &scene.film.filter, pos, rgb);
+                                splat_normalized(&mut buf, bw, border, &scene.film.filter, pos - offset, rgb);
                             } else {
                                 bad += 1;
                             }
@@ -250,7 +279,13 @@ fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options
         })
         .collect();
     let stats = RenderStats::new(scene, threads, seconds, total as f64, invalid.into_inner());
-    Ok((Image::new(w, h, pixels), stats))
+    let mut image = Image::new(w, h, pixels);
+    image.pixel_format = scene.film.pixel_format;
+    if scene.film.pixel_format.has_alpha() {
+        // Light paths have no camera ray to cover a pixel: opaque everywhere.
+        image.channels.push(crate::film::Channel { name: "A".into(), values: vec![1.0; (w * h) as usize] });
+    }
+    Ok((image, stats))
 }
 
 /// Adds `value` at film position `pos` (pixels) to a full-film buffer with a

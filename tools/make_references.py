@@ -66,6 +66,11 @@ def render_reference(path, res, spp, pass_spp):
     t0 = time.time()
     for i in range(n_passes):
         img = np.array(mi.render(scene, spp=pass_spp, seed=i), dtype=np.float64)
+        # The aov integrator's returned tensor leaves out its nested
+        # integrators' channels (Mitsuba 3.9.1); the film's bitmap has all.
+        bitmap = scene.sensors()[0].film().bitmap()
+        if len(list(bitmap.struct_())) != img.shape[2]:
+            img = np.array(bitmap, dtype=np.float64)
         if acc is None:
             acc, acc2 = np.zeros_like(img), np.zeros_like(img)
         acc += img

@@ -1,10 +1,34 @@
 //! The film: where samples are accumulated into pixels, through a
 //! reconstruction filter, and developed into an image.
 //!
-//! `hdrfilm` parameters: `width`, `height` (integers, default 768 × 576),
-//! `rfilter` (nested; default `gaussian` as in Mitsuba), and Mitsuba's
-//! `pixel_format` / `component_format` / `file_format` accepted for
-//! compatibility when they name what Snell writes anyway (rgb, float32, openexr).
+//! `hdrfilm` parameters:
+//!
+//! | parameter | type | default | meaning |
+//! |---|---|---|---|
+//! | `width`, `height` | integer | 768, 576 | film size in pixels (the camera's projection) |
+//! | `crop_offset_x`, `crop_offset_y` | integer | 0 | top-left pixel of the rendered window |
+//! | `crop_width`, `crop_height` | integer | width, height | size of the rendered window = size of the output image |
+//! | `pixel_format` | string | `rgb` | channels written: `rgb` (R,G,B), `rgba` (R,G,B,A), `luminance` (Y), `luminance_alpha` (Y,A), `xyz` (X,Y,Z), `xyza` (X,Y,Z,A) |
+//! | `component_format`, `file_format` | string | `float32`, `openexr` | accepted for compatibility |
+//! | (nested) | `rfilter` | `gaussian` | reconstruction filter |
+//!
+//! As in Mitsuba, a crop window renders only its pixels, with the camera
+//! keeping the full film's projection: a cropped render is that window of
+//! the full render. Alpha (A) is the integrator's coverage — for `path`, 1
+//! where the camera ray hits a surface or a visible environment emitter
+//! exists, for `direct` and the AOV integrators' nested ones where it hits a
+//! surface — filtered like colour, so an edge pixel holds the fraction of
+//! its (filter-weighted) samples that hit. Y is the luminance of linear sRGB
+//! (Rec. 709 weights) and XYZ its CIE 1931 transform, as Mitsuba converts.
+//!
+//! ```xml
+//! <film type="hdrfilm">
+//!     <integer name="width" value="640"/> <integer name="height" value="480"/>
+//!     <integer name="crop_offset_x" value="100"/> <integer name="crop_offset_y" value="50"/>
+//!     <integer name="crop_width" value="200"/> <integer name="crop_height" value="100"/>
+//!     <string name="pixel_format" value="rgba"/>
+//! </film>
+//! ```
 //!
 //! Each sample at continuous film position p contributes to every pixel whose
 //! centre c lies within the filter's radius, with weight w = filter(c − p);
@@ -20,9 +44,76 @@ use crate::spectrum::Rgb;
 
 #[derive(Clone, Debug)]
 pub struct FilmSpec {
+    /// The full film, which the camera's projection spans.
     pub width: u32,
     pub height: u32,
     pub filter: Filter,
+    /// The rendered window: offset (x, y) and size (width, height) in pixels.
+    pub crop: [u32; 4],
+    pub pixel_format: PixelFormat,
+}
+
+impl FilmSpec {
+    /// A film of `width` × `height` pixels, rendered whole, written as RGB.
+    pub fn new(width: u32, height: u32, filter: Filter) -> FilmSpec {
+        FilmSpec { width, height, filter, crop: [0, 0, width, height], pixel_format: PixelFormat::Rgb }
+    }
+}
+
+/// What the main image's channels are (Mitsuba's `pixel_format`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PixelFormat {
+    Rgb,
+    Rgba,
+    Luminance,
+    LuminanceAlpha,
+    Xyz,
+    Xyza,
+}
+
+impl PixelFormat {
+    pub const NAMES: [&'static str; 6] = ["rgb", "rgba", "luminance", "luminance_alpha", "xyz", "xyza"];
+
+    pub fn from_name(name: &str) -> Option<PixelFormat> {
+        let all = [PixelFormat::Rgb, PixelFormat::Rgba, PixelFormat::Luminance, PixelFormat::LuminanceAlpha, PixelFormat::Xyz, PixelFormat::Xyza];
+        PixelFormat::NAMES.iter().position(|n| *n == name).map(|i| all[i])
+    }
+
+    pub fn has_alpha(self) -> bool {
+        matches!(self, PixelFormat::Rgba | PixelFormat::LuminanceAlpha | PixelFormat::Xyza)
+    }
+
+    /// The colour channels' names (the alpha channel, if any, is `A`).
+    pub fn colour_channels(self) -> &'static [&'static str] {
+        match self {
+            PixelFormat::Rgb | PixelFormat::Rgba => &["R", "G", "B"],
+            PixelFormat::Luminance | PixelFormat::LuminanceAlpha => &["Y"],
+            PixelFormat::Xyz | PixelFormat::Xyza => &["X", "Y", "Z"],
+        }
+    }
+
+    /// A linear-sRGB pixel in this format's colour channels (up to three).
+    pub fn convert(self, p: Rgb) -> [f32; 3] {
+        match self {
+            PixelFormat::Rgb | PixelFormat::Rgba => p.0,
+            PixelFormat::Luminance | PixelFormat::LuminanceAlpha => [luminance(p), 0.0, 0.0],
+            PixelFormat::Xyz | PixelFormat::Xyza => srgb_to_xyz(p),
+        }
+    }
+}
+
+/// Luminance Y of linear sRGB (Rec. 709 primaries, D65), as Mitsuba's `luminance()`.
+pub fn luminance(p: Rgb) -> f32 {
+    0.212671 * p[0] + 0.715160 * p[1] + 0.072169 * p[2]
+}
+
+/// CIE 1931 XYZ of linear sRGB (D65), as Mitsuba's `srgb_to_xyz`.
+pub fn srgb_to_xyz(p: Rgb) -> [f32; 3] {
+    [
+        0.412453 * p[0] + 0.357580 * p[1] + 0.180423 * p[2],
+        luminance(p),
+        0.019334 * p[0] + 0.119193 * p[1] + 0.950227 * p[2],
+    ]
 }
 
 /// A rectangle of pixels (with a border of the filter's radius) that one
@@ -37,11 +128,47 @@ pub struct TileBuffer {
     /// Weighted S1, S2, S3 sums (RGB each) per pixel; empty unless the
     /// render is polarized.
     pub stokes: Vec<[f32; 9]>,
+    /// Weighted sums of `n_extra` further scalar channels per pixel (alpha,
+    /// AOVs), pixel after pixel; empty unless asked for.
+    pub extra: Vec<f32>,
+    pub n_extra: usize,
 }
 
 impl TileBuffer {
     pub fn new(x0: i32, y0: i32, width: usize, height: usize) -> TileBuffer {
-        TileBuffer { x0, y0, width, height, data: vec![[0.0; 4]; width * height], stokes: vec![] }
+        TileBuffer { x0, y0, width, height, data: vec![[0.0; 4]; width * height], stokes: vec![], extra: vec![], n_extra: 0 }
+    }
+
+    /// With room for `n` further scalar channels per pixel (alpha, AOVs),
+    /// splatted by [`TileBuffer::splat_extra`].
+    pub fn with_extra(mut self, n: usize) -> TileBuffer {
+        self.extra = vec![0.0; self.width * self.height * n];
+        self.n_extra = n;
+        self
+    }
+
+    /// Adds the further channels `values` of a sample at `pos` with the same
+    /// filter weights as its colour (the colour itself goes through
+    /// [`TileBuffer::splat`], which also accumulates the weights).
+    pub fn splat_extra(&mut self, filter: &Filter, pos: (f32, f32), values: &[f32]) {
+        let n = self.n_extra;
+        if n == 0 || values.len() != n {
+            return;
+        }
+        let Some(fp) = self.footprint(filter, pos) else { return };
+        for j in 0..fp.ny {
+            let wy = fp.wy[j];
+            if wy == 0.0 {
+                continue;
+            }
+            let row = (fp.y0 + j) * self.width + fp.first;
+            for (i, &wx) in fp.wx[..fp.nx].iter().enumerate() {
+                let w = wx * wy;
+                for (d, v) in self.extra[(row + i) * n..(row + i + 1) * n].iter_mut().zip(values) {
+                    *d += w * v;
+                }
+            }
+        }
     }
 
     /// With room for the Stokes components S1, S2, S3 (RGB each) of the
@@ -137,13 +264,26 @@ const MAX_FOOTPRINT: usize = 9;
 
 /// The developed image: linear RGB, row-major, top row first, and any
 /// further layers of the same size (the Stokes components S1–S3 of a
-/// polarized render), which an EXR keeps as channels `NAME.R` etc.
+/// polarized render), which an EXR keeps as channels `NAME.R` etc., and
+/// further scalar channels (alpha `A`, AOVs such as `dd.y.T`, moments).
 #[derive(Clone, Debug)]
 pub struct Image {
     pub width: u32,
     pub height: u32,
     pub pixels: Vec<Rgb>,
     pub layers: Vec<Layer>,
+    /// How `pixels` is written (RGB, luminance Y or XYZ; alpha is the
+    /// channel `A` when the format has one).
+    pub pixel_format: PixelFormat,
+    /// Named scalar channels, written after the colour in this order.
+    pub channels: Vec<Channel>,
+}
+
+/// One named scalar channel of an [`Image`], row-major like its pixels.
+#[derive(Clone, Debug)]
+pub struct Channel {
+    pub name: String,
+    pub values: Vec<f32>,
 }
 
 #[derive(Clone, Debug)]
@@ -155,11 +295,31 @@ pub struct Layer {
 impl Image {
     /// An RGB image without further layers.
     pub fn new(width: u32, height: u32, pixels: Vec<Rgb>) -> Image {
-        Image { width, height, pixels, layers: vec![] }
+        Image { width, height, pixels, layers: vec![], pixel_format: PixelFormat::Rgb, channels: vec![] }
     }
 
     pub fn layer(&self, name: &str) -> Option<&Layer> {
         self.layers.iter().find(|l| l.name == name)
+    }
+
+    /// The scalar channel `name` (e.g. `A`, `dd.y.T`).
+    pub fn channel(&self, name: &str) -> Option<&Channel> {
+        self.channels.iter().find(|c| c.name == name)
+    }
+
+    /// The values of the channel an EXR file would call `name`: `R`, `G`,
+    /// `B` of the image, `NAME.R` etc. of a layer, or a scalar channel.
+    pub fn values(&self, name: &str) -> Option<Vec<f32>> {
+        if let Some(c) = self.channel(name) {
+            return Some(c.values.clone());
+        }
+        let component = |suffix: &str| ["R", "G", "B"].iter().position(|c| *c == suffix);
+        if let Some(k) = component(name) {
+            return Some(self.pixels.iter().map(|p| p[k]).collect());
+        }
+        let (layer, suffix) = name.rsplit_once('.')?;
+        let k = component(suffix)?;
+        Some(self.layer(layer)?.pixels.iter().map(|p| p[k]).collect())
     }
 }
 
@@ -170,11 +330,25 @@ pub struct Film {
     sums: Vec<[f64; 4]>,
     /// S1–S3 sums (RGB each) of a polarized render, else empty.
     stokes: Vec<[f64; 9]>,
+    /// Sums of the further scalar channels (names below), pixel after pixel.
+    extra: Vec<f64>,
+    extra_names: Vec<String>,
+    pixel_format: PixelFormat,
 }
 
 impl Film {
     pub fn new(width: u32, height: u32) -> Film {
-        Film { width, height, sums: vec![[0.0; 4]; width as usize * height as usize], stokes: vec![] }
+        Film { width, height, sums: vec![[0.0; 4]; width as usize * height as usize], stokes: vec![], extra: vec![], extra_names: vec![], pixel_format: PixelFormat::Rgb }
+    }
+
+    /// A film that also develops the scalar channels `names` (tiles made
+    /// [`TileBuffer::with_extra`] with as many), and writes its colour as
+    /// `format` says.
+    pub fn with_channels(mut self, format: PixelFormat, names: Vec<String>) -> Film {
+        self.extra = vec![0.0; self.sums.len() * names.len()];
+        self.extra_names = names;
+        self.pixel_format = format;
+        self
     }
 
     /// A film that also develops the Stokes layers S1, S2, S3.
@@ -203,6 +377,12 @@ impl Film {
                         *d += *s as f64;
                     }
                 }
+                let n = self.extra_names.len();
+                if n > 0 && tile.n_extra == n {
+                    for (d, s) in self.extra[i * n..(i + 1) * n].iter_mut().zip(&tile.extra[t * n..(t + 1) * n]) {
+                        *d += *s as f64;
+                    }
+                }
             }
         }
     }
@@ -222,6 +402,20 @@ impl Film {
                 let pixels = self.stokes.iter().zip(&self.sums).map(|(s, w)| normalize(&s[3 * k..3 * k + 3], w[3])).collect();
                 image.layers.push(Layer { name: name.to_string(), pixels });
             }
+        }
+        image.pixel_format = self.pixel_format;
+        let n = self.extra_names.len();
+        for (k, name) in self.extra_names.iter().enumerate() {
+            let values = self
+                .sums
+                .iter()
+                .enumerate()
+                .map(|(i, s)| {
+                    let v = (self.extra[i * n + k] / s[3]) as f32;
+                    if s[3] > 0.0 && v.is_finite() { v } else { 0.0 }
+                })
+                .collect();
+            image.channels.push(Channel { name: name.clone(), values });
         }
         image
     }

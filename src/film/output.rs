@@ -1,9 +1,12 @@
-//! Writing developed images: OpenEXR (linear float32 RGB, plus named
-//! channels for further layers such as the Stokes components), PNG (8-bit
-//! sRGB, clamped) and PFM (linear float32, bottom row first as the format
-//! says). PNG and PFM hold the RGB image only.
+//! Writing developed images: OpenEXR (linear float32, the channels the
+//! film's `pixel_format` names — R,G,B / R,G,B,A / Y / Y,A / X,Y,Z / X,Y,Z,A
+//! — plus named channels for further layers such as the Stokes components
+//! and scalar channels such as AOVs), PNG (8-bit sRGB, clamped; RGBA when
+//! the image has alpha, grey for luminance) and PFM (linear float32, bottom
+//! row first as the format says; greyscale for luminance). PNG and PFM hold
+//! the main image only.
 
-use super::{Image, Layer};
+use super::{Channel, Image, Layer, PixelFormat};
 use crate::spectrum::Rgb;
 use crate::texture::bitmap::linear_to_srgb;
 use std::io::Write;
@@ -34,8 +37,11 @@ pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
         anyhow::anyhow!("cannot tell the image format of {}: use one of .{}", path.display(), Format::EXTENSIONS.join(", ."))
     })?;
     let (w, h) = (image.width as usize, image.height as usize);
+    let alpha = image.pixel_format.has_alpha().then(|| image.channel("A")).flatten();
+    let grey = matches!(image.pixel_format, PixelFormat::Luminance | PixelFormat::LuminanceAlpha);
+    let srgb8 = |v: f32| (linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8;
     match format {
-        Format::Exr if image.layers.is_empty() => {
+        Format::Exr if image.layers.is_empty() && image.channels.is_empty() && image.pixel_format == PixelFormat::Rgb => {
             exr::prelude::write_rgb_file(path, w, h, |x, y| {
                 let p = image.pixels[y * w + x];
                 (p[0], p[1], p[2])
@@ -44,24 +50,42 @@ pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
         }
         Format::Exr => write_layered_exr(image, path)?,
         Format::Png => {
-            let mut buf = Vec::with_capacity(w * h * 3);
-            for p in &image.pixels {
-                for c in 0..3 {
-                    buf.push((linear_to_srgb(p[c].clamp(0.0, 1.0)) * 255.0 + 0.5) as u8);
+            let mut buf = Vec::with_capacity(w * h * 4);
+            for (i, p) in image.pixels.iter().enumerate() {
+                if grey {
+                    buf.push(srgb8(super::luminance(*p)));
+                } else {
+                    for c in 0..3 {
+                        buf.push(srgb8(p[c]));
+                    }
+                }
+                if let Some(a) = alpha {
+                    // Alpha is coverage: stored linearly.
+                    buf.push((a.values[i].clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
                 }
             }
-            image::save_buffer(path, &buf, w as u32, h as u32, image::ExtendedColorType::Rgb8)
-                .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+            let color = match (grey, alpha.is_some()) {
+                (false, false) => image::ExtendedColorType::Rgb8,
+                (false, true) => image::ExtendedColorType::Rgba8,
+                (true, false) => image::ExtendedColorType::L8,
+                (true, true) => image::ExtendedColorType::La8,
+            };
+            image::save_buffer(path, &buf, w as u32, h as u32, color).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
         }
         Format::Pfm => {
             let mut f = std::io::BufWriter::new(
                 std::fs::File::create(path).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?,
             );
-            write!(f, "PF\n{w} {h}\n-1.0\n")?;
+            write!(f, "{}\n{w} {h}\n-1.0\n", if grey { "Pf" } else { "PF" })?;
             for y in (0..h).rev() {
                 for x in 0..w {
+                    let p = image.pixels[y * w + x];
+                    if grey {
+                        f.write_all(&super::luminance(p).to_le_bytes())?;
+                        continue;
+                    }
                     for c in 0..3 {
-                        f.write_all(&image.pixels[y * w + x][c].to_le_bytes())?;
+                        f.write_all(&p[c].to_le_bytes())?;
                     }
                 }
             }
@@ -71,21 +95,34 @@ pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// R, G, B, then each layer as channels `NAME.R`, `NAME.G`, `NAME.B`; a
-/// render with Stokes layers also repeats R, G, B as `S0.*`, so the file has
-/// the channels Mitsuba's `stokes` integrator writes.
+/// The colour channels of the pixel format (R, G, B; Y; or X, Y, Z), then
+/// each layer as channels `NAME.R`, `NAME.G`, `NAME.B` (a render with Stokes
+/// layers also repeats R, G, B as `S0.*`, so the file has the channels
+/// Mitsuba's `stokes` integrator writes), then the scalar channels (`A`,
+/// AOVs) by name.
 fn write_layered_exr(image: &Image, path: &Path) -> anyhow::Result<()> {
     use exr::prelude as x;
     use exr::prelude::WritableImage;
     let channel = |name: String, pixels: &[Rgb], c: usize| {
         x::AnyChannel::new(name.as_str(), x::FlatSamples::F32(pixels.iter().map(|p| p[c]).collect()))
     };
-    let mut layers: Vec<(String, &[Rgb])> = vec![(String::new(), &image.pixels)];
+    let mut layers: Vec<(String, &[Rgb])> = vec![];
     if image.layer("S1").is_some() {
         layers.push(("S0.".to_string(), &image.pixels));
     }
     layers.extend(image.layers.iter().map(|l| (format!("{}.", l.name), l.pixels.as_slice())));
     let mut channels = x::SmallVec::new();
+    let format = image.pixel_format;
+    for (c, name) in format.colour_channels().iter().enumerate() {
+        let values = image.pixels.iter().map(|p| format.convert(*p)[c]).collect();
+        channels.push(x::AnyChannel::new(*name, x::FlatSamples::F32(values)));
+    }
+    for Channel { name, values } in &image.channels {
+        if name == "A" && !format.has_alpha() {
+            continue;
+        }
+        channels.push(x::AnyChannel::new(name.as_str(), x::FlatSamples::F32(values.clone())));
+    }
     for (prefix, pixels) in layers {
         for (c, rgb) in ["R", "G", "B"].into_iter().enumerate() {
             channels.push(channel(format!("{prefix}{rgb}"), pixels, c));
@@ -103,9 +140,10 @@ fn write_layered_exr(image: &Image, path: &Path) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
 }
 
-/// Reads an EXR (as written by Snell or Mitsuba): R, G, B as the image, and
-/// every other complete `NAME.R`/`.G`/`.B` triple (S0–S3 of a polarized
-/// render) as a layer.
+/// Reads an EXR (as written by Snell or Mitsuba): R, G, B (or a grey Y) as
+/// the image, every other complete `NAME.R`/`.G`/`.B` triple (S0–S3 of a
+/// polarized render) as a layer, and every remaining channel (A, AOVs such
+/// as `dd.y.T`) as a scalar channel.
 pub fn read_exr(path: &Path) -> anyhow::Result<Image> {
     use exr::prelude as x;
     use exr::prelude::ReadChannels;
@@ -128,7 +166,8 @@ pub fn read_exr(path: &Path) -> anyhow::Result<Image> {
         let pixels: Vec<Rgb> = r.iter().zip(&g).zip(&b).map(|((&r, &g), &b)| Rgb::new(r, g, b)).collect();
         (pixels.len() == size.0 * size.1).then_some(pixels)
     };
-    let pixels = triple("").ok_or_else(|| anyhow::anyhow!("EXR image {} has no R, G, B channels", path.display()))?;
+    let grey = || -> Option<Vec<Rgb>> { find("Y").map(|y| y.iter().map(|&v| Rgb::new(v, v, v)).collect()) };
+    let pixels = triple("").or_else(grey).ok_or_else(|| anyhow::anyhow!("EXR image {} has no R, G, B (or Y) channels", path.display()))?;
     let mut image = Image::new(size.0 as u32, size.1 as u32, pixels);
     let mut prefixes: Vec<String> = channels.iter().filter_map(|c| c.name.to_string().strip_suffix(".R").map(str::to_string)).collect();
     prefixes.sort();
@@ -136,6 +175,22 @@ pub fn read_exr(path: &Path) -> anyhow::Result<Image> {
         if let Some(pixels) = triple(&format!("{name}.")) {
             image.layers.push(Layer { name, pixels });
         }
+    }
+    let main: &[&str] = if find("R").is_some() { &["R", "G", "B"] } else { &["Y"] };
+    for c in channels {
+        let name = c.name.to_string();
+        let in_layer = name.rsplit_once('.').is_some_and(|(l, s)| ["R", "G", "B"].contains(&s) && image.layer(l).is_some());
+        if !main.contains(&name.as_str()) && !in_layer {
+            let values: Vec<f32> = c.sample_data.values_as_f32().collect();
+            if values.len() == size.0 * size.1 {
+                image.channels.push(Channel { name, values });
+            }
+        }
+    }
+    if image.channel("A").is_some() {
+        image.pixel_format = if main.len() == 1 { PixelFormat::LuminanceAlpha } else { PixelFormat::Rgba };
+    } else if main.len() == 1 {
+        image.pixel_format = PixelFormat::Luminance;
     }
     Ok(image)
 }

@@ -3,10 +3,12 @@
 //! Both are generic over the path's [`Spectrum`] type and follow Mitsuba 3's
 //! definitions, so the same XML gives the same expected image.
 
+pub mod aov;
 pub mod direct;
 pub mod path;
 pub mod ptracer;
 
+pub use aov::{Aov, AovKind, Moment};
 pub use direct::Direct;
 pub use path::PathTracer;
 pub use ptracer::ParticleTracer;
@@ -23,6 +25,10 @@ pub enum Integrator {
     /// Light paths splatted onto the film; rendered by its own driver
     /// ([`crate::render`]), never through [`Integrator::li`].
     Particle(ParticleTracer),
+    /// Arbitrary output variables beside nested integrators' images.
+    Aov(Aov),
+    /// First and second moments of nested integrators' samples.
+    Moment(Moment),
 }
 
 impl Integrator {
@@ -34,6 +40,50 @@ impl Integrator {
             Integrator::Direct(d) => d.li(scene, ray, sampler, wl),
             Integrator::Path(p) => p.li(scene, ray, sampler, wl),
             Integrator::Particle(_) => S::zero(),
+            Integrator::Aov(a) => a.integrators.first().map_or(S::zero(), |(_, i)| i.li(scene, ray, sampler, wl)),
+            Integrator::Moment(m) => m.integrators.first().map_or(S::zero(), |(_, i)| i.li(scene, ray, sampler, wl)),
+        }
+    }
+
+    /// Names of the further channels this integrator writes (AOVs, moments),
+    /// as Mitsuba names them; empty for the plain integrators.
+    pub fn channel_names(&self) -> Vec<String> {
+        match self {
+            Integrator::Aov(a) => a.channel_names(),
+            Integrator::Moment(m) => m.channel_names(),
+            _ => vec![],
+        }
+    }
+
+    pub fn channel_count(&self) -> usize {
+        match self {
+            Integrator::Direct(_) | Integrator::Path(_) | Integrator::Particle(_) => 0,
+            _ => self.channel_names().len(),
+        }
+    }
+
+    /// Radiance along `ray` as [`Integrator::li`], with the further channels
+    /// written to `channels` (as many as [`Integrator::channel_names`]), and
+    /// the sample's alpha as Mitsuba's integrators report it: for `path`, 1
+    /// if the environment is visible (an environment emitter and no
+    /// `hide_emitters`), else whether the camera ray hits a surface it
+    /// shows; for `direct`, whether it hits one. Costs one more ray cast
+    /// than `li` for `direct` and `path` (only asked for when the film has
+    /// alpha or an AOV integrator nests them).
+    pub fn sample<S: Spectrum>(&self, scene: &Scene, ray: Ray, sampler: &mut Sampler, wl: &mut S::Wavelengths, channels: &mut [f32]) -> (S, f32) {
+        let hits = |hide: bool| {
+            let hit = if hide { scene.intersect_hiding_emitters(&ray) } else { scene.intersect(&ray) };
+            if hit.is_some() { 1.0 } else { 0.0 }
+        };
+        match self {
+            Integrator::Direct(d) => (d.li(scene, ray, sampler, wl), hits(d.hide_emitters)),
+            Integrator::Path(p) => {
+                let alpha = if scene.environment.is_some() && !p.hide_emitters { 1.0 } else { hits(p.hide_emitters) };
+                (p.li(scene, ray, sampler, wl), alpha)
+            }
+            Integrator::Particle(_) => (S::zero(), 0.0),
+            Integrator::Aov(a) => a.sample(scene, ray, sampler, wl, channels),
+            Integrator::Moment(m) => m.sample(scene, ray, sampler, wl, channels),
         }
     }
 }

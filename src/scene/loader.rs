@@ -10,7 +10,7 @@ use super::Scene;
 use crate::bsdf::dispersion::DispersiveInterface;
 use crate::bsdf::{Bsdf, Conductor, Lobe, Dielectric, Diffuse, Plastic, Polarizer, Retarder, ThinDielectric, TwoSided};
 use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, EnvironmentMap, PointLight, Projector, SpotLight};
-use crate::film::{FilmSpec, Filter, FilterKind};
+use crate::film::{FilmSpec, Filter, FilterKind, PixelFormat};
 use crate::geometry::accel::Accel;
 use crate::geometry::cylinder::Cylinder;
 use crate::geometry::disk::Disk;
@@ -19,7 +19,7 @@ use crate::geometry::mesh_io;
 use crate::geometry::serialized;
 use crate::geometry::sphere::Sphere;
 use crate::geometry::{Shape, ShapeGeometry};
-use crate::integrator::{Direct, Integrator, ParticleTracer, PathTracer};
+use crate::integrator::{Aov, AovKind, Direct, Integrator, Moment, ParticleTracer, PathTracer};
 use crate::math::Transform;
 use crate::sampler::SamplerSpec;
 use crate::sensor::perspective::{focal_length_fov, horizontal_fov, parse_focal_length};
@@ -40,7 +40,7 @@ pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
 pub const SAMPLERS: [&str; 1] = ["independent"];
-pub const INTEGRATORS: [&str; 4] = ["direct", "path", "ptracer", "stokes"];
+pub const INTEGRATORS: [&str; 6] = ["direct", "path", "ptracer", "stokes", "aov", "moment"];
 
 /// What the command line can override.
 #[derive(Clone, Debug, Default)]
@@ -56,6 +56,17 @@ pub struct LoadOptions {
 pub fn load_file(path: &Path, options: &LoadOptions) -> Result<Scene> {
     let root = xml::parse_file(path, &options.params)?;
     Loader::new(&root)?.build(&root, options)
+}
+
+/// As [`load_file`], with the film made `width` pixels wide and its height
+/// scaled to keep the aspect ratio (rounded, at least 1; any crop window
+/// reset to the whole film): quick low-resolution renders of scenes whose
+/// film size is fixed in the file.
+pub fn load_file_at_width(path: &Path, options: &LoadOptions, width: u32) -> Result<Scene> {
+    let root = xml::parse_file(path, &options.params)?;
+    let mut loader = Loader::new(&root)?;
+    loader.film_width = Some(width.max(1));
+    loader.build(&root, options)
 }
 
 /// Loads scene text; relative file names resolve against `path`'s folder.
@@ -83,6 +94,8 @@ struct Loader {
     /// `mesh_attribute` textures, resolved against the meshes once all
     /// are loaded, with the location of their `name`.
     mesh_attribute_textures: std::cell::RefCell<Vec<(Arc<MeshAttributeTexture>, super::Location)>>,
+    /// Film width forced by [`load_file_at_width`].
+    film_width: Option<u32>,
 }
 
 fn collect_ids(node: &Node, ids: &mut HashMap<String, Arc<Node>>) -> Result<()> {
@@ -175,6 +188,7 @@ impl Loader {
             instances: vec![],
             in_group: false,
             mesh_attribute_textures: Default::default(),
+            film_width: None,
         })
     }
 
@@ -854,7 +868,10 @@ impl Loader {
         }
         let film = match films.first() {
             Some(f) => self.film(f)?,
-            None => FilmSpec { width: 768, height: 576, filter: Filter::gaussian(0.5) },
+            None => match self.film_width {
+                Some(w) => FilmSpec::new(w, ((576.0 * w as f64 / 768.0).round() as u32).max(1), Filter::gaussian(0.5)),
+                None => FilmSpec::new(768, 576, Filter::gaussian(0.5)),
+            },
         };
         let sampler = match samplers.first() {
             Some(s) => self.sampler(s)?,
@@ -904,7 +921,13 @@ impl Loader {
         let props = Props::new(node);
         let width = props.int_checked("width", 768, |v| (1..=65536).contains(&v), "between 1 and 65536")? as u32;
         let height = props.int_checked("height", 576, |v| (1..=65536).contains(&v), "between 1 and 65536")? as u32;
-        props.choice("pixel_format", "rgb", &["rgb"])?;
+        let pixel_format = props.choice("pixel_format", "rgb", &PixelFormat::NAMES)?;
+        let pixel_format = PixelFormat::from_name(pixel_format).unwrap_or(PixelFormat::Rgb);
+        // The crop window: offset inside the film, size at least one pixel and within the film.
+        let crop_x = props.int_checked("crop_offset_x", 0, |v| (0..width as i64).contains(&v), &format!("between 0 and {} (width − 1)", width - 1))? as u32;
+        let crop_y = props.int_checked("crop_offset_y", 0, |v| (0..height as i64).contains(&v), &format!("between 0 and {} (height − 1)", height - 1))? as u32;
+        let crop_w = props.int_checked("crop_width", (width - crop_x) as i64, |v| v >= 1 && v <= (width - crop_x) as i64, &format!("between 1 and {} (width − crop_offset_x)", width - crop_x))? as u32;
+        let crop_h = props.int_checked("crop_height", (height - crop_y) as i64, |v| v >= 1 && v <= (height - crop_y) as i64, &format!("between 1 and {} (height − crop_offset_y)", height - crop_y))? as u32;
         props.choice("component_format", "float32", &["float16", "float32"])?;
         props.choice("file_format", "openexr", &["openexr", "exr"])?;
         let filters = self.nested(&props, Kind::Rfilter)?;
@@ -914,7 +937,11 @@ impl Loader {
             _ => return Err(SceneError::at(&filters[1].loc, "a film takes at most one <rfilter>")),
         };
         props.finish()?;
-        Ok(FilmSpec { width, height, filter })
+        if let Some(w) = self.film_width {
+            let h = ((height as f64 * w as f64 / width as f64).round() as u32).max(1);
+            return Ok(FilmSpec { pixel_format, ..FilmSpec::new(w, h, filter) });
+        }
+        Ok(FilmSpec { crop: [crop_x, crop_y, crop_w, crop_h], pixel_format, ..FilmSpec::new(width, height, filter) })
     }
 
     fn rfilter(&self, node: &Arc<Node>) -> Result<Filter> {
@@ -968,6 +995,20 @@ impl Loader {
             props.finish()?;
             return Ok((inner, true));
         }
+        if node.plugin == "aov" || node.plugin == "moment" {
+            let integrators = self.nested_integrators(node, &props)?;
+            let integrator = if node.plugin == "aov" {
+                Integrator::Aov(Aov { aovs: self.aov_list(node, &props)?, integrators })
+            } else {
+                if integrators.is_empty() {
+                    return Err(SceneError::at(&node.loc, "the moment integrator needs at least one nested <integrator> whose moments it records")
+                        .with_choices(&["direct", "path", "aov", "moment"]));
+                }
+                Integrator::Moment(Moment { integrators })
+            };
+            props.finish()?;
+            return Ok((integrator, false));
+        }
         let integrator = match node.plugin.as_str() {
             "direct" => {
                 let shading = props.int_checked("shading_samples", 1, |v| (0..=1024).contains(&v), "between 0 and 1024")?;
@@ -1003,5 +1044,49 @@ impl Loader {
         };
         props.finish()?;
         Ok((integrator, false))
+    }
+
+    /// The integrators nested in an `aov` or `moment` integrator, with their
+    /// names (`name` attribute, else `_arg_0`, `_arg_1`, … as Mitsuba names them).
+    fn nested_integrators(&self, node: &Arc<Node>, props: &Props) -> Result<Vec<(String, Integrator)>> {
+        let mut out = vec![];
+        let mut unnamed = 0;
+        for child in props.children_of(Kind::Integrator) {
+            let n = self.resolve(child)?;
+            if matches!(n.plugin.as_str(), "ptracer" | "stokes") {
+                return Err(SceneError::at(&n.loc, format!("the {} integrator nests camera-path integrators; \"{}\" cannot be nested", node.plugin, n.plugin))
+                    .with_choices(&["direct", "path", "aov", "moment"]));
+            }
+            let name = child.name.clone().unwrap_or_else(|| {
+                unnamed += 1;
+                format!("_arg_{}", unnamed - 1)
+            });
+            out.push((name, self.integrator(&n)?.0));
+        }
+        Ok(out)
+    }
+
+    /// The `aovs` string of an `aov` integrator: `NAME:TYPE` pairs separated
+    /// by commas or spaces.
+    fn aov_list(&self, node: &Arc<Node>, props: &Props) -> Result<Vec<(String, AovKind)>> {
+        let text = props.string_req("aovs")?;
+        let loc = props.node.props.iter().find(|p| p.name == "aovs").map_or(&node.loc, |p| &p.loc);
+        let mut out = vec![];
+        for token in text.split([',', ' ', '\t', '\n']).filter(|t| !t.is_empty()) {
+            let (name, kind) = match token.split_once(':') {
+                Some((n, k)) if !n.is_empty() && !k.is_empty() && !k.contains(':') => (n, k),
+                _ => return Err(SceneError::at(loc, format!("\"{token}\" in \"aovs\" is not a NAME:TYPE pair (e.g. \"dd.y:depth\")")).with_choices(&AovKind::NAMES)),
+            };
+            let Some(kind) = AovKind::from_name(kind) else {
+                let msg = if AovKind::UNSUPPORTED.contains(&kind) {
+                    format!("the AOV type \"{kind}\" is not supported yet")
+                } else {
+                    format!("unknown AOV type \"{kind}\"")
+                };
+                return Err(SceneError::at(loc, msg).with_choices(&AovKind::NAMES));
+            };
+            out.push((name.to_string(), kind));
+        }
+        Ok(out)
     }
 }
