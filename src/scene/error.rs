@@ -10,6 +10,30 @@ use std::sync::Arc;
 pub struct SourceFile {
     pub path: PathBuf,
     pub text: String,
+    /// Byte offset of the start of each line, built once so that a location
+    /// costs a binary search (O(log n)) instead of a scan of the file.
+    line_starts: Vec<usize>,
+}
+
+impl SourceFile {
+    pub fn new(path: PathBuf, text: String) -> SourceFile {
+        let mut line_starts = vec![0];
+        line_starts.extend(text.bytes().enumerate().filter(|&(_, b)| b == b'\n').map(|(i, _)| i + 1));
+        SourceFile { path, text, line_starts }
+    }
+
+    /// The 0-based line holding byte `byte`, and that line's first byte.
+    fn line_of(&self, byte: usize) -> (usize, usize) {
+        let line = self.line_starts.partition_point(|&s| s <= byte).saturating_sub(1);
+        (line, self.line_starts[line])
+    }
+
+    /// The text of 1-based line `line`, without its line break.
+    pub fn line_text(&self, line: u32) -> &str {
+        let Some(&start) = self.line_starts.get(line.saturating_sub(1) as usize) else { return "" };
+        let end = self.line_starts.get(line as usize).map_or(self.text.len(), |&e| e - 1);
+        self.text.get(start..end.max(start)).unwrap_or("").trim_end_matches('\r')
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -27,15 +51,17 @@ impl Location {
 
     /// The location of a byte offset in the file.
     pub fn at_byte(file: &Arc<SourceFile>, byte: usize) -> Location {
-        let text = &file.text[..byte.min(file.text.len())];
-        let line = text.matches('\n').count() as u32 + 1;
-        let line_start = text.rfind('\n').map_or(0, |i| i + 1);
-        let col = text[line_start..].chars().count() as u32 + 1;
-        Location::new(file, line, col)
+        let mut byte = byte.min(file.text.len());
+        while !file.text.is_char_boundary(byte) {
+            byte -= 1;
+        }
+        let (line, line_start) = file.line_of(byte);
+        let col = file.text[line_start..byte].chars().count() as u32 + 1;
+        Location::new(file, line as u32 + 1, col)
     }
 
     pub fn source_line(&self) -> &str {
-        self.file.text.lines().nth(self.line.saturating_sub(1) as usize).unwrap_or("")
+        self.file.line_text(self.line)
     }
 }
 
@@ -100,7 +126,7 @@ mod tests {
 
     #[test]
     fn display_quotes_the_line_with_a_caret() {
-        let file = Arc::new(SourceFile { path: "a.xml".into(), text: "<scene>\n  <bsdf type=\"x\"/>\n".into() });
+        let file = Arc::new(SourceFile::new("a.xml".into(), "<scene>\n  <bsdf type=\"x\"/>\n".into()));
         let loc = Location::at_byte(&file, file.text.find("<bsdf").unwrap());
         assert_eq!((loc.line, loc.col), (2, 3));
         let e = SceneError::at(&loc, "unknown bsdf \"x\"").with_choices(&["diffuse"]);
@@ -109,5 +135,24 @@ mod tests {
         assert!(s.contains("2 |   <bsdf type=\"x\"/>"), "{s}");
         assert!(s.contains("  |   ^"), "{s}");
         assert!(s.contains("valid choices are: diffuse"), "{s}");
+    }
+
+    #[test]
+    fn line_index_matches_a_scan() {
+        let text = "a\r\nbc\n\nλx\nlast";
+        let file = Arc::new(SourceFile::new("t.xml".into(), text.into()));
+        for byte in 0..=text.len() + 3 {
+            let b = byte.min(text.len());
+            if !text.is_char_boundary(b) {
+                continue;
+            }
+            let before = &text[..b];
+            let line = before.matches('\n').count() as u32 + 1;
+            let col = before[before.rfind('\n').map_or(0, |i| i + 1)..].chars().count() as u32 + 1;
+            let loc = Location::at_byte(&file, byte);
+            assert_eq!((loc.line, loc.col), (line, col), "byte {byte}");
+            assert_eq!(loc.source_line(), text.lines().nth(line as usize - 1).unwrap_or(""));
+        }
+        assert_eq!(file.line_text(99), "");
     }
 }
