@@ -2,6 +2,11 @@
 //! channels for further layers such as the Stokes components), PNG (8-bit
 //! sRGB, clamped) and PFM (linear float32, bottom row first as the format
 //! says). PNG and PFM hold the RGB image only.
+//!
+//! Every write is atomic and checked: the image goes to a temporary file in
+//! the same folder, which is flushed and synced, then renamed over the
+//! destination; any failure (a full disk, a missing folder) is an error that
+//! names the file, and leaves no partial file behind.
 
 use super::{Image, Layer};
 use crate::spectrum::Rgb;
@@ -29,52 +34,110 @@ impl Format {
     }
 }
 
+/// Checks, before a render, that `path` can be written: its format is known,
+/// its folder exists and is a folder, and a file can be created there (a
+/// probe file is created and removed). The destination itself is not
+/// touched.
+pub fn check_writable(path: &Path) -> anyhow::Result<()> {
+    if Format::from_path(path).is_none() {
+        anyhow::bail!("cannot tell the image format of {}: use one of .{}", path.display(), Format::EXTENSIONS.join(", ."));
+    }
+    let dir = folder_of(path);
+    match std::fs::metadata(dir) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => anyhow::bail!("cannot write {}: {} is not a folder", path.display(), dir.display()),
+        Err(e) => anyhow::bail!("cannot write {}: its folder {} does not exist ({e})", path.display(), dir.display()),
+    }
+    if path.is_dir() {
+        anyhow::bail!("cannot write {}: it is a folder", path.display());
+    }
+    let probe = temp_path(path, "probe");
+    std::fs::File::create(&probe).map_err(|e| anyhow::anyhow!("cannot write {}: {e} (in folder {})", path.display(), dir.display()))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// A hidden temporary name next to `path`, unique to this process.
+fn temp_path(path: &Path, what: &str) -> std::path::PathBuf {
+    let name = path.file_name().map_or_else(|| "image".into(), |n| n.to_string_lossy().to_string());
+    folder_of(path).join(format!(".{name}.{what}-{}", std::process::id()))
+}
+
+/// Writes through `body` into a temporary file next to `path`, flushes and
+/// syncs it, and renames it to `path`; on any error removes the temporary
+/// file and reports `path`.
+fn write_atomically(path: &Path, body: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> anyhow::Result<()>) -> anyhow::Result<()> {
+    let tmp = temp_path(path, "tmp");
+    let result = (|| -> anyhow::Result<()> {
+        let file = std::fs::File::create(&tmp)?;
+        let mut w = std::io::BufWriter::new(file);
+        body(&mut w)?;
+        w.flush()?;
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        drop(file);
+        std::fs::rename(&tmp, path)?;
+        Ok(())
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(anyhow::anyhow!("cannot write {}: {e:#}", path.display()));
+    }
+    Ok(())
+}
+
 pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
     let format = Format::from_path(path).ok_or_else(|| {
         anyhow::anyhow!("cannot tell the image format of {}: use one of .{}", path.display(), Format::EXTENSIONS.join(", ."))
     })?;
     let (w, h) = (image.width as usize, image.height as usize);
-    match format {
-        Format::Exr if image.layers.is_empty() => {
-            exr::prelude::write_rgb_file(path, w, h, |x, y| {
-                let p = image.pixels[y * w + x];
-                (p[0], p[1], p[2])
-            })
-            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
-        }
-        Format::Exr => write_layered_exr(image, path)?,
-        Format::Png => {
-            let mut buf = Vec::with_capacity(w * h * 3);
-            for p in &image.pixels {
-                for c in 0..3 {
-                    buf.push((linear_to_srgb(p[c].clamp(0.0, 1.0)) * 255.0 + 0.5) as u8);
-                }
+    write_atomically(path, |f| {
+        match format {
+            Format::Exr if image.layers.is_empty() => {
+                use exr::prelude::WritableImage;
+                let channels = exr::prelude::SpecificChannels::rgb(|exr::math::Vec2(x, y)| {
+                    let p: Rgb = image.pixels[y * w + x];
+                    (p[0], p[1], p[2])
+                });
+                exr::prelude::Image::from_channels((w, h), channels).write().to_buffered(f)?;
             }
-            image::save_buffer(path, &buf, w as u32, h as u32, image::ExtendedColorType::Rgb8)
-                .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
-        }
-        Format::Pfm => {
-            let mut f = std::io::BufWriter::new(
-                std::fs::File::create(path).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?,
-            );
-            write!(f, "PF\n{w} {h}\n-1.0\n")?;
-            for y in (0..h).rev() {
-                for x in 0..w {
+            Format::Exr => write_layered_exr(image, f)?,
+            Format::Png => {
+                use image::ImageEncoder;
+                let mut buf = Vec::with_capacity(w * h * 3);
+                for p in &image.pixels {
                     for c in 0..3 {
-                        f.write_all(&image.pixels[y * w + x][c].to_le_bytes())?;
+                        buf.push((linear_to_srgb(p[c].clamp(0.0, 1.0)) * 255.0 + 0.5) as u8);
+                    }
+                }
+                image::codecs::png::PngEncoder::new(&mut *f).write_image(&buf, w as u32, h as u32, image::ExtendedColorType::Rgb8)?;
+            }
+            Format::Pfm => {
+                write!(f, "PF\n{w} {h}\n-1.0\n")?;
+                for y in (0..h).rev() {
+                    for x in 0..w {
+                        for c in 0..3 {
+                            f.write_all(&image.pixels[y * w + x][c].to_le_bytes())?;
+                        }
                     }
                 }
             }
-            f.flush()?;
         }
-    }
-    Ok(())
+        Ok(())
+    })
 }
 
 /// R, G, B, then each layer as channels `NAME.R`, `NAME.G`, `NAME.B`; a
 /// render with Stokes layers also repeats R, G, B as `S0.*`, so the file has
 /// the channels Mitsuba's `stokes` integrator writes.
-fn write_layered_exr(image: &Image, path: &Path) -> anyhow::Result<()> {
+fn write_layered_exr(image: &Image, out: &mut std::io::BufWriter<std::fs::File>) -> anyhow::Result<()> {
     use exr::prelude as x;
     use exr::prelude::WritableImage;
     let channel = |name: String, pixels: &[Rgb], c: usize| {
@@ -97,10 +160,8 @@ fn write_layered_exr(image: &Image, path: &Path) -> anyhow::Result<()> {
         x::Encoding::FAST_LOSSLESS,
         x::AnyChannels::sort(channels),
     );
-    x::Image::from_layer(layer)
-        .write()
-        .to_file(path)
-        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+    x::Image::from_layer(layer).write().to_buffered(out)?;
+    Ok(())
 }
 
 /// Reads an EXR (as written by Snell or Mitsuba): R, G, B as the image, and
