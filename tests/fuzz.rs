@@ -60,10 +60,13 @@ fn work_dir(kind: &str) -> PathBuf {
     dir
 }
 
-/// Keeps fuzzed images small: a header claiming more is refused cheaply.
+/// Keeps fuzzed images small (a header claiming more is refused cheaply),
+/// and fits the spectral uplift table once before any case is timed (a
+/// one-off cost of seconds, as `snell render` also pays before rendering).
 fn small_budgets() {
     snell::limits::set_max_image_pixels(1 << 20);
     snell::limits::set_max_film_bytes(256 << 20);
+    snell::spectrum::uplift::RgbUplift::get();
 }
 
 const TROUBLE: [&str; 24] = [

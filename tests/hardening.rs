@@ -492,6 +492,7 @@ fn output_paths_are_checked_before_rendering() {
     // 2^20 spp would take minutes: the checks must come first.
     for args in [
         vec!["-o", "missing/folder/out.exr"],
+        vec!["-o", "a.exr", "-o", "missing/b.png"],
         vec!["-o", "a.exr", "-o", "b.png", "-o", "./a.exr"],
         vec!["-o", "a.exr", "--stats", "nowhere/stats.json"],
     ] {

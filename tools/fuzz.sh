@@ -13,7 +13,7 @@
 # Environment: START (first seed), SEEDS (number of seeds), CASES (cases per
 # kind and seed), CASE_SECONDS (per case, default 10), MEM_MB (virtual memory
 # per batch, default 4096), DURATION (seconds; 0 = no limit), OUT (folder for
-# logs of failing batches, default fuzz-failures/). Inputs that fail are saved
+# logs of failing batches, default $TMPDIR/snell-fuzz-logs). Inputs that fail are saved
 # by the harness under $TMPDIR/snell-fuzz-failures/.
 #
 # Exit status: 0 when every batch passed; 1 otherwise. The summary counts
@@ -29,7 +29,7 @@ CASES=${CASES:-200}
 CASE_SECONDS=${CASE_SECONDS:-10}
 MEM_MB=${MEM_MB:-4096}
 DURATION=${DURATION:-0}
-OUT=${OUT:-fuzz-failures}
+OUT=${OUT:-${TMPDIR:-/tmp}/snell-fuzz-logs}
 
 bin=$(cargo test --release --test fuzz --no-run 2>&1 | sed -n 's/.*Executable tests\/fuzz.rs (\(.*\))/\1/p' | tail -n 1)
 if [ -z "$bin" ] || [ ! -x "$bin" ]; then
