@@ -11,6 +11,7 @@ pub mod emitter;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
+pub mod limits;
 pub mod math;
 pub mod render;
 pub mod sampler;

@@ -9,6 +9,20 @@ use std::collections::HashMap;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// `eprintln!` that ignores a closed or failing stderr instead of panicking
+/// (`snell render … 2>&1 | head -c0`).
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
+/// The most worker threads `--threads` accepts.
+const MAX_THREADS: usize = 4096;
 
 #[derive(Parser)]
 #[command(name = "snell", version, about = "A physically based renderer for Mitsuba 3 XML scenes")]
@@ -41,9 +55,18 @@ struct RenderArgs {
     /// Set a scene parameter declared with <default name=…>, as NAME=VALUE. Repeatable.
     #[arg(short = 'D', value_name = "NAME=VALUE")]
     define: Vec<String>,
-    /// Worker threads (default: all cores).
+    /// Worker threads (default: all cores; at most 4096).
     #[arg(short, long, default_value_t = 0)]
     threads: usize,
+    /// Largest texture image accepted, in pixels (e.g. 16384*16384); checked
+    /// from the image's header before it is decoded. Default 2^28, or the
+    /// environment variable SNELL_MAX_IMAGE_PIXELS.
+    #[arg(long, value_name = "PIXELS")]
+    max_image_pixels: Option<String>,
+    /// Memory budget of the film while rendering, in MB (estimated before
+    /// anything is allocated). Default 8192, or SNELL_MAX_FILM_BYTES (bytes).
+    #[arg(long, value_name = "MB")]
+    max_film_mb: Option<u64>,
     /// Sampler seed (overrides the scene's).
     #[arg(long)]
     seed: Option<u64>,
@@ -82,17 +105,17 @@ fn main() -> ExitCode {
         None => match default_render() {
             Ok(args) => args,
             Err(e) => {
-                eprintln!("error: {e:#}");
+                say!("error: {e:#}");
                 return ExitCode::FAILURE;
             }
         },
     };
     match run(args) {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             match e.downcast_ref::<snell::SceneError>() {
-                Some(se) => eprintln!("{se}"),
-                None => eprintln!("error: {e:#}"),
+                Some(se) => say!("{se}"),
+                None => say!("error: {e:#}"),
             }
             ExitCode::FAILURE
         }
@@ -114,6 +137,8 @@ fn default_render() -> anyhow::Result<RenderArgs> {
         width: None,
         define: vec![],
         threads: 0,
+        max_image_pixels: None,
+        max_film_mb: None,
         seed: None,
         stats: None,
         quiet: false,
@@ -122,7 +147,33 @@ fn default_render() -> anyhow::Result<RenderArgs> {
     })
 }
 
-fn run(args: RenderArgs) -> anyhow::Result<()> {
+/// Checks every output before the render: a known format, an existing and
+/// writable folder, and no file named twice.
+fn check_outputs(images: &[&PathBuf], stats: Option<&PathBuf>) -> anyhow::Result<()> {
+    let mut seen: Vec<PathBuf> = vec![];
+    for p in images.iter().copied().chain(stats) {
+        let abs = std::path::absolute(p).unwrap_or_else(|_| p.clone());
+        if seen.contains(&abs) {
+            anyhow::bail!("{} is given twice as an output; name each output once", p.display());
+        }
+        seen.push(abs);
+    }
+    for p in images {
+        snell::film::output::check_writable(p)?;
+    }
+    if let Some(p) = stats {
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if !dir.is_dir() {
+            anyhow::bail!("cannot write the statistics {}: its folder {} does not exist", p.display(), dir.display());
+        }
+    }
+    Ok(())
+}
+
+fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     let mut params = HashMap::new();
     for d in &args.define {
         let (k, v) = d.split_once('=').with_context(|| format!("-D {d}: expected NAME=VALUE"))?;
@@ -133,6 +184,9 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
     }
     if args.spp == Some(0) {
         anyhow::bail!("--spp must be at least 1");
+    }
+    if let Some(spp) = args.spp.filter(|&n| n > snell::scene::loader::MAX_SPP) {
+        anyhow::bail!("--spp {spp} is above the limit of {} (2^24), the same as a scene's sample_count", snell::scene::loader::MAX_SPP);
     }
     let outputs = if args.output.is_empty() {
         let stem = args.scene.file_stem().map_or("render".into(), |s| s.to_string_lossy().to_string());
@@ -145,6 +199,17 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
             anyhow::bail!("cannot tell the image format of {}: use one of .{}", o.display(), Format::EXTENSIONS.join(", ."));
         }
     }
+    if args.threads > MAX_THREADS {
+        anyhow::bail!("--threads {} is more than the {MAX_THREADS} worker threads Snell starts at most", args.threads);
+    }
+    if let Some(s) = &args.max_image_pixels {
+        let n = snell::limits::parse_count(s)
+            .with_context(|| format!("--max-image-pixels {s}: expected a pixel count such as 100000000 or 16384*16384"))?;
+        snell::limits::set_max_image_pixels(n);
+    }
+    if let Some(mb) = args.max_film_mb {
+        snell::limits::set_max_film_bytes(mb.saturating_mul(1 << 20));
+    }
     let polarized = matches!(args.mode, Mode::RgbPolarized | Mode::SpectralPolarized);
     if let Some(view) = &args.stokes_view {
         if !polarized {
@@ -155,6 +220,9 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
         }
     }
 
+    let images: Vec<&PathBuf> = outputs.iter().chain(&args.stokes_view).collect();
+    check_outputs(&images, args.stats.as_ref())?;
+
     let load_start = std::time::Instant::now();
     let options = LoadOptions { params, spp: args.spp, seed: args.seed };
     let scene = match args.width {
@@ -162,6 +230,11 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
         Some(w) => snell::scene::loader::load_file_at_width(&args.scene, &options, w)?,
         None => snell::load_file(&args.scene, &options)?,
     };
+    if !args.quiet {
+        for w in &scene.warnings {
+            say!("{w}");
+        }
+    }
     if polarized && matches!(scene.integrator, snell::integrator::Integrator::Particle(_)) {
         anyhow::bail!(
             "{}: the polarized modes need a camera-path integrator (path or direct); particle tracing (ptracer) does not carry polarization",
@@ -169,7 +242,7 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
         );
     }
     if scene.stokes_requested && !polarized && !args.quiet {
-        eprintln!("warning: the scene's stokes integrator writes S1–S3 only in a polarized mode (--mode rgb-polarized or spectral-polarized); writing the intensity image");
+        say!("warning: the scene's stokes integrator writes S1–S3 only in a polarized mode (--mode rgb-polarized or spectral-polarized); writing the intensity image");
     }
     if polarized {
         if let Some(b) = scene.bsdfs.iter().find(|b| !b.has_mueller_model()) {
@@ -187,7 +260,21 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
     let load_seconds = load_start.elapsed().as_secs_f64();
 
     let show = !args.quiet && std::io::stderr().is_terminal();
-    let render_options = RenderOptions { threads: args.threads, progress: show };
+    // Ctrl-C or SIGTERM: finish the work under way, write what was rendered,
+    // exit 130. A second signal exits at once.
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let handler = ctrlc::set_handler(move || {
+        if flag.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+    });
+    if let Err(e) = handler {
+        if !args.quiet {
+            say!("warning: cannot install the Ctrl-C handler ({e}); an interrupted render will not be saved");
+        }
+    }
+    let render_options = RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()) };
     let (image, stats) = match args.mode {
         Mode::Rgb => snell::render::<Rgb>(&scene, &render_options)?,
         Mode::Spectral => snell::render::<Sampled>(&scene, &render_options)?,
@@ -208,9 +295,21 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
         json["mode"] = args.mode.to_possible_value().map_or_else(String::new, |v| v.get_name().to_string()).into();
         std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n").with_context(|| format!("cannot write {}", path.display()))?;
     }
+    if stats.interrupted {
+        let names: Vec<String> = outputs.iter().chain(&args.stokes_view).map(|o| o.display().to_string()).collect();
+        say!(
+            "interrupted: wrote the partial image ({} of {} samples, {:.1}%; each rendered pixel has {} spp, the rest are black) → {}",
+            stats.samples_taken,
+            stats.samples_planned,
+            100.0 * stats.samples_taken as f64 / stats.samples_planned.max(1) as f64,
+            stats.spp,
+            names.join(", ")
+        );
+        return Ok(ExitCode::from(130));
+    }
     if !args.quiet {
         let names: Vec<String> = outputs.iter().chain(&args.stokes_view).map(|o| o.display().to_string()).collect();
-        eprintln!(
+        say!(
             "rendered {}×{} at {} spp in {:.2} s ({:.2} M samples/s, {} threads; loading {:.2} s) → {}",
             stats.width,
             stats.height,
@@ -222,8 +321,8 @@ fn run(args: RenderArgs) -> anyhow::Result<()> {
             names.join(", ")
         );
         if stats.invalid_samples > 0 {
-            eprintln!("warning: {} samples were NaN or infinite and were set to zero", stats.invalid_samples);
+            say!("warning: {} samples were NaN or infinite and were set to zero", stats.invalid_samples);
         }
     }
-    Ok(())
+    Ok(ExitCode::SUCCESS)
 }

@@ -13,7 +13,8 @@ use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use serde::Serialize;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
 
 const TILE: u32 = 16;
@@ -24,12 +25,68 @@ pub struct RenderOptions {
     pub threads: usize,
     /// Show a progress bar on stderr (only drawn when stderr is a terminal).
     pub progress: bool,
+    /// Set (e.g. by a Ctrl-C / SIGTERM handler) to stop early: work units
+    /// (tile rows; batches of light paths) not yet started are skipped, and
+    /// the image develops from the samples taken ([`RenderStats::interrupted`]).
+    pub stop: Option<Arc<AtomicBool>>,
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { threads: 0, progress: false }
+        RenderOptions { threads: 0, progress: false, stop: None }
     }
+}
+
+impl RenderOptions {
+    fn stopped(&self) -> bool {
+        self.stop.as_ref().is_some_and(|s| s.load(Ordering::Relaxed))
+    }
+}
+
+/// Bytes the render of `scene` holds at its peak (tile buffers with their
+/// filter borders, the film's f64 sums, the developed image and an encoded
+/// copy for output), `polarized` adding the Stokes layers.
+pub fn estimate_memory(scene: &Scene, polarized: bool) -> u64 {
+    let (w, h) = (scene.film.width as u64, scene.film.height as u64);
+    let pixels = w * h;
+    let border = (scene.film.filter.radius() + 0.5).ceil() as u64;
+    if let Integrator::Particle(_) = &scene.integrator {
+        let threads = rayon::current_num_threads() as u64;
+        return pixels * (24 + 12 + 12) + threads * (w + 2 * border) * (h + 2 * border) * 12;
+    }
+    let tiles_x = w.div_ceil(TILE as u64);
+    let tiles_y = h.div_ceil(TILE as u64);
+    let tile_pixels = tiles_x * tiles_y * (TILE as u64 + 2 * border).pow(2);
+    let (tile, film, image) = if polarized { (16 + 36, 32 + 72, 12 * 4) } else { (16, 32, 12) };
+    tile_pixels * tile + pixels * (film + image + image)
+}
+
+/// Refuses a film whose estimated memory is above the budget
+/// ([`crate::limits::max_film_bytes`]), before anything is allocated.
+fn check_memory(scene: &Scene, polarized: bool) -> anyhow::Result<()> {
+    let need = estimate_memory(scene, polarized);
+    let max = crate::limits::max_film_bytes();
+    if need > max {
+        let mb = |b: u64| b.div_ceil(1 << 20);
+        anyhow::bail!(
+            "the film of {} × {} pixels needs about {} MB while rendering, above the budget of {} MB \
+             (raise it with --max-film-mb or the environment variable SNELL_MAX_FILM_BYTES)",
+            scene.film.width,
+            scene.film.height,
+            mb(need),
+            mb(max)
+        );
+    }
+    Ok(())
+}
+
+/// A pool of `threads` workers, with an error that names the thread count
+/// when the system refuses them.
+fn thread_pool(threads: usize) -> anyhow::Result<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| anyhow::anyhow!("cannot start {threads} worker threads (--threads {threads}): {e}"))
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -43,12 +100,22 @@ pub struct RenderStats {
     pub samples_per_second: f64,
     /// Samples whose estimate was NaN or infinite, replaced by zero.
     pub invalid_samples: u64,
+    /// Whether the render was stopped early ([`RenderOptions::stop`]).
+    pub interrupted: bool,
+    /// Samples (camera samples, or light paths) actually taken, and the
+    /// number a full render takes.
+    pub samples_taken: u64,
+    pub samples_planned: u64,
 }
 
 impl RenderStats {
     /// `samples` (camera samples, or light paths) rendered in `seconds`.
     fn new(scene: &Scene, threads: usize, seconds: f64, samples: f64, invalid_samples: u64) -> RenderStats {
+        let planned = scene.film.crop[2] as u64 * scene.film.crop[3] as u64 * scene.sampler.sample_count as u64;
         RenderStats {
+            interrupted: (samples as u64) < planned,
+            samples_taken: samples as u64,
+            samples_planned: planned,
             width: scene.film.crop[2],
             height: scene.film.crop[3],
             spp: scene.sampler.sample_count,
@@ -82,12 +149,14 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
     if let Integrator::Particle(tracer) = &scene.integrator {
         return render_particles::<S>(scene, tracer, options);
     }
+    check_memory(scene, S::POLARIZED)?;
     let threads = thread_count(options);
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+    let pool = thread_pool(threads)?;
     // The crop window (the whole film unless the scene crops): pixels are
     // numbered within it, the camera sees the full film.
     let [ox, oy, w, h] = scene.film.crop;
     let spp = scene.sampler.sample_count;
+    let taken = AtomicU64::new(0);
     let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
     let up = scene.camera.up();
     // Further per-sample channels: alpha if the film has it, then the
@@ -127,6 +196,11 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
                 let mut extra = vec![0.0f32; n_extra];
                 let mut bad = 0u64;
                 for y in ty..ty + th {
+                    // A tile row is the unit of work that a stop request lets finish.
+                    if options.stopped() {
+                        break;
+                    }
+                    taken.fetch_add(tw as u64 * spp as u64, Ordering::Relaxed);
                     for x in tx..tx + tw {
                         // Seeded by the pixel's place in the full film: a crop
                         // renders the same samples as the full render there.
@@ -182,7 +256,7 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
     for b in &buffers {
         film.merge(b);
     }
-    let samples = w as f64 * h as f64 * spp as f64;
+    let samples = taken.into_inner() as f64;
     let stats = RenderStats::new(scene, threads, seconds, samples, invalid.into_inner());
     Ok((film.develop(), stats))
 }
@@ -214,12 +288,14 @@ const PARTICLE_CHUNKS: u64 = 256;
 /// per splat, so a splat deposits exactly its value), divided by the number
 /// of paths.
 fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options: &RenderOptions) -> anyhow::Result<(Image, RenderStats)> {
+    check_memory(scene, S::POLARIZED)?;
     let threads = thread_count(options);
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+    let pool = thread_pool(threads)?;
     // Paths land anywhere on the full film; only the crop window is kept.
     let [ox, oy, w, h] = scene.film.crop;
     let offset = Vec2::new(ox as f32, oy as f32);
     let spp = scene.sampler.sample_count;
+    let mut traced = 0u64;
     let total = w as u64 * h as u64 * spp as u64;
     let chunks = PARTICLE_CHUNKS.min(total.max(1));
     let border = (scene.film.filter.radius() + 0.5).ceil() as usize;
@@ -231,6 +307,11 @@ fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options
     let start = Instant::now();
     let chunk_ids: Vec<u64> = (0..chunks).collect();
     for batch in chunk_ids.chunks(threads.max(1)) {
+        // A batch of chunks is the unit of work that a stop request lets finish.
+        if options.stopped() {
+            break;
+        }
+        traced += batch.iter().map(|&c| total * (c + 1) / chunks - total * c / chunks).sum::<u64>();
         let images: Vec<Vec<[f32; 3]>> = pool.install(|| {
             batch
                 .par_iter()
@@ -270,7 +351,8 @@ fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options
     }
     let seconds = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    let scale = 1.0 / total.max(1) as f64;
+    // Divided by the paths actually traced (all of them unless stopped early).
+    let scale = 1.0 / traced.max(1) as f64;
     let pixels = sums
         .iter()
         .map(|s| {
@@ -278,7 +360,7 @@ fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options
             if v.is_finite() { v } else { Rgb::BLACK }
         })
         .collect();
-    let stats = RenderStats::new(scene, threads, seconds, total as f64, invalid.into_inner());
+    let stats = RenderStats::new(scene, threads, seconds, traced as f64, invalid.into_inner());
     let mut image = Image::new(w, h, pixels);
     image.pixel_format = scene.film.pixel_format;
     if scene.film.pixel_format.has_alpha() {

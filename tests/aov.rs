@@ -166,7 +166,7 @@ fn small_scene(film_extra: &str, filter: &str, integrator: &str) -> String {
 }
 
 fn render(scene: &snell::Scene) -> Image {
-    snell::render::<Rgb>(scene, &RenderOptions { threads: 2, progress: false }).expect("render").0
+    snell::render::<Rgb>(scene, &RenderOptions { threads: 2, progress: false, ..Default::default() }).expect("render").0
 }
 
 #[test]

@@ -34,7 +34,7 @@ fn every_bundled_scene_loads_and_renders() {
         let options = LoadOptions { params, spp: Some(4), seed: None };
         let scene = snell::load_file(path, &options).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         let (image, stats) =
-            snell::render::<Rgb>(&scene, &RenderOptions { threads: 1, progress: false }).unwrap_or_else(|e| panic!("{e}"));
+            snell::render::<Rgb>(&scene, &RenderOptions { threads: 1, ..RenderOptions::default() }).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(stats.invalid_samples, 0, "{}", path.display());
         assert!(image.pixels.iter().all(|p| p.is_finite()), "{}", path.display());
         let mean = image.pixels.iter().map(|p| p.mean()).sum::<f32>() / image.pixels.len() as f32;

@@ -660,13 +660,32 @@ impl Rng {
 }
 
 /// Loads `bytes` (as text, if it is UTF-8) and checks that an error, if any,
-/// renders and points inside the text. A panic fails the test.
+/// renders and points inside the text; a scene that loads is rendered at
+/// 8×8 and 1 spp (RGB, or spectral for every other one) and must give
+/// finite pixels. A panic fails the test.
 fn load_never_panics(path: &Path, bytes: &[u8], params: &HashMap<String, String>, seen: &mut (usize, usize)) {
     let Ok(text) = std::str::from_utf8(bytes) else { return };
     let options = LoadOptions { params: params.clone(), spp: None, seed: None };
-    let result = std::panic::catch_unwind(|| snell::load_str(path, text, &options).map(|_| ()));
+    let spectral = (seen.0 + seen.1) % 2 == 1;
+    let result = std::panic::catch_unwind(|| {
+        snell::load_str(path, text, &options).map(|mut scene| {
+            scene.film.width = 8;
+            scene.film.height = 8;
+            scene.sampler.sample_count = 1;
+            let options = snell::RenderOptions { threads: 1, ..snell::RenderOptions::default() };
+            let image = if spectral {
+                snell::render::<snell::spectrum::Sampled>(&scene, &options)
+            } else {
+                snell::render::<snell::spectrum::Rgb>(&scene, &options)
+            };
+            if let Ok((image, _)) = image {
+                assert_eq!(image.pixels.len(), 64);
+                assert!(image.pixels.iter().all(|p| p.is_finite()), "non-finite pixel rendering:\n{text}");
+            }
+        })
+    });
     match result {
-        Err(_) => panic!("load_str panicked on this input:\n{text}"),
+        Err(_) => panic!("load_str or the render panicked on this input:\n{text}"),
         Ok(Ok(())) => seen.0 += 1,
         Ok(Err(e)) => {
             seen.1 += 1;

@@ -5,6 +5,11 @@
 //! the image has alpha, grey for luminance) and PFM (linear float32, bottom
 //! row first as the format says; greyscale for luminance). PNG and PFM hold
 //! the main image only.
+//!
+//! Every write is atomic and checked: the image goes to a temporary file in
+//! the same folder, which is flushed and synced, then renamed over the
+//! destination; any failure (a full disk, a missing folder) is an error that
+//! names the file, and leaves no partial file behind.
 
 use super::{Channel, Image, Layer, PixelFormat};
 use crate::spectrum::Rgb;
@@ -32,6 +37,65 @@ impl Format {
     }
 }
 
+/// Checks, before a render, that `path` can be written: its format is known,
+/// its folder exists and is a folder, and a file can be created there (a
+/// probe file is created and removed). The destination itself is not
+/// touched.
+pub fn check_writable(path: &Path) -> anyhow::Result<()> {
+    if Format::from_path(path).is_none() {
+        anyhow::bail!("cannot tell the image format of {}: use one of .{}", path.display(), Format::EXTENSIONS.join(", ."));
+    }
+    let dir = folder_of(path);
+    match std::fs::metadata(dir) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => anyhow::bail!("cannot write {}: {} is not a folder", path.display(), dir.display()),
+        Err(e) => anyhow::bail!("cannot write {}: its folder {} does not exist ({e})", path.display(), dir.display()),
+    }
+    if path.is_dir() {
+        anyhow::bail!("cannot write {}: it is a folder", path.display());
+    }
+    let probe = temp_path(path, "probe");
+    std::fs::File::create(&probe).map_err(|e| anyhow::anyhow!("cannot write {}: {e} (in folder {})", path.display(), dir.display()))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// A hidden temporary name next to `path`, unique to this process.
+fn temp_path(path: &Path, what: &str) -> std::path::PathBuf {
+    let name = path.file_name().map_or_else(|| "image".into(), |n| n.to_string_lossy().to_string());
+    folder_of(path).join(format!(".{name}.{what}-{}", std::process::id()))
+}
+
+/// Writes through `body` into a temporary file next to `path`, flushes and
+/// syncs it, and renames it to `path`; on any error removes the temporary
+/// file and reports `path`.
+fn write_atomically(path: &Path, body: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> anyhow::Result<()>) -> anyhow::Result<()> {
+    let tmp = temp_path(path, "tmp");
+    let result = (|| -> anyhow::Result<()> {
+        let file = std::fs::File::create(&tmp)?;
+        let mut w = std::io::BufWriter::new(file);
+        body(&mut w)?;
+        w.flush()?;
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        drop(file);
+        std::fs::rename(&tmp, path)?;
+        Ok(())
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(anyhow::anyhow!("cannot write {}: {e:#}", path.display()));
+    }
+    Ok(())
+}
+
 pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
     let format = Format::from_path(path).ok_or_else(|| {
         anyhow::anyhow!("cannot tell the image format of {}: use one of .{}", path.display(), Format::EXTENSIONS.join(", ."))
@@ -40,59 +104,59 @@ pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
     let alpha = image.pixel_format.has_alpha().then(|| image.channel("A")).flatten();
     let grey = matches!(image.pixel_format, PixelFormat::Luminance | PixelFormat::LuminanceAlpha);
     let srgb8 = |v: f32| (linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8;
-    match format {
-        Format::Exr if image.layers.is_empty() && image.channels.is_empty() && image.pixel_format == PixelFormat::Rgb => {
-            exr::prelude::write_rgb_file(path, w, h, |x, y| {
-                let p = image.pixels[y * w + x];
-                (p[0], p[1], p[2])
-            })
-            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
-        }
-        Format::Exr => write_layered_exr(image, path)?,
-        Format::Png => {
-            let mut buf = Vec::with_capacity(w * h * 4);
-            for (i, p) in image.pixels.iter().enumerate() {
-                if grey {
-                    buf.push(srgb8(super::luminance(*p)));
-                } else {
-                    for c in 0..3 {
-                        buf.push(srgb8(p[c]));
-                    }
-                }
-                if let Some(a) = alpha {
-                    // Alpha is coverage: stored linearly.
-                    buf.push((a.values[i].clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
-                }
+    write_atomically(path, |f| {
+        match format {
+            Format::Exr if image.layers.is_empty() && image.channels.is_empty() && image.pixel_format == PixelFormat::Rgb => {
+                use exr::prelude::WritableImage;
+                let channels = exr::prelude::SpecificChannels::rgb(|exr::math::Vec2(x, y)| {
+                    let p: Rgb = image.pixels[y * w + x];
+                    (p[0], p[1], p[2])
+                });
+                exr::prelude::Image::from_channels((w, h), channels).write().to_buffered(f)?;
             }
-            let color = match (grey, alpha.is_some()) {
-                (false, false) => image::ExtendedColorType::Rgb8,
-                (false, true) => image::ExtendedColorType::Rgba8,
-                (true, false) => image::ExtendedColorType::L8,
-                (true, true) => image::ExtendedColorType::La8,
-            };
-            image::save_buffer(path, &buf, w as u32, h as u32, color).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
-        }
-        Format::Pfm => {
-            let mut f = std::io::BufWriter::new(
-                std::fs::File::create(path).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?,
-            );
-            write!(f, "{}\n{w} {h}\n-1.0\n", if grey { "Pf" } else { "PF" })?;
-            for y in (0..h).rev() {
-                for x in 0..w {
-                    let p = image.pixels[y * w + x];
+            Format::Exr => write_layered_exr(image, f)?,
+            Format::Png => {
+                use image::ImageEncoder;
+                let mut buf = Vec::with_capacity(w * h * 4);
+                for (i, p) in image.pixels.iter().enumerate() {
                     if grey {
-                        f.write_all(&super::luminance(p).to_le_bytes())?;
-                        continue;
+                        buf.push(srgb8(super::luminance(*p)));
+                    } else {
+                        for c in 0..3 {
+                            buf.push(srgb8(p[c]));
+                        }
                     }
-                    for c in 0..3 {
-                        f.write_all(&p[c].to_le_bytes())?;
+                    if let Some(a) = alpha {
+                        // Alpha is coverage: stored linearly.
+                        buf.push((a.values[i].clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
+                    }
+                }
+                let color = match (grey, alpha.is_some()) {
+                    (false, false) => image::ExtendedColorType::Rgb8,
+                    (false, true) => image::ExtendedColorType::Rgba8,
+                    (true, false) => image::ExtendedColorType::L8,
+                    (true, true) => image::ExtendedColorType::La8,
+                };
+                image::codecs::png::PngEncoder::new(&mut *f).write_image(&buf, w as u32, h as u32, color)?;
+            }
+            Format::Pfm => {
+                write!(f, "{}\n{w} {h}\n-1.0\n", if grey { "Pf" } else { "PF" })?;
+                for y in (0..h).rev() {
+                    for x in 0..w {
+                        let p = image.pixels[y * w + x];
+                        if grey {
+                            f.write_all(&super::luminance(p).to_le_bytes())?;
+                            continue;
+                        }
+                        for c in 0..3 {
+                            f.write_all(&p[c].to_le_bytes())?;
+                        }
                     }
                 }
             }
-            f.flush()?;
         }
-    }
-    Ok(())
+        Ok(())
+    })
 }
 
 /// The colour channels of the pixel format (R, G, B; Y; or X, Y, Z), then
@@ -100,7 +164,7 @@ pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
 /// layers also repeats R, G, B as `S0.*`, so the file has the channels
 /// Mitsuba's `stokes` integrator writes), then the scalar channels (`A`,
 /// AOVs) by name.
-fn write_layered_exr(image: &Image, path: &Path) -> anyhow::Result<()> {
+fn write_layered_exr(image: &Image, out: &mut std::io::BufWriter<std::fs::File>) -> anyhow::Result<()> {
     use exr::prelude as x;
     use exr::prelude::WritableImage;
     let channel = |name: String, pixels: &[Rgb], c: usize| {
@@ -134,10 +198,8 @@ fn write_layered_exr(image: &Image, path: &Path) -> anyhow::Result<()> {
         x::Encoding::FAST_LOSSLESS,
         x::AnyChannels::sort(channels),
     );
-    x::Image::from_layer(layer)
-        .write()
-        .to_file(path)
-        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+    x::Image::from_layer(layer).write().to_buffered(out)?;
+    Ok(())
 }
 
 /// Reads an EXR (as written by Snell or Mitsuba): R, G, B (or a grey Y) as

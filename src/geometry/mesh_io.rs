@@ -1,4 +1,5 @@
-//! Reading triangle meshes from OBJ (via `tobj`) and PLY (via `ply-rs-bw`)
+//! Reading triangle meshes from OBJ (a strict reader of its own, which
+//! reports the line of each problem) and PLY (via `ply-rs-bw`)
 //! files, into object space. Errors are plain messages; the scene loader adds
 //! the location of the `<shape>` that named the file.
 
@@ -115,34 +116,149 @@ impl RawMesh {
 
 /// Reads an OBJ file; all its objects become one mesh. Texture v is flipped
 /// (v ↦ 1 − v) as Mitsuba's OBJ loader does by default.
+///
+/// Strict, with the line of each problem: a number that does not parse, a
+/// face with fewer than three vertices, or a face naming a position,
+/// texture coordinate or normal the file does not have is an error.
+/// Indices are 1-based, or negative (relative to the end of the list so
+/// far); polygons are fanned into triangles. Statements other than `v`,
+/// `vt`, `vn` and `f` (groups, materials, lines, points) are ignored.
 pub fn read_obj(path: &Path) -> Result<RawMesh, String> {
-    let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
-    let (models, _) = tobj::load_obj(path, &options).map_err(|e| format!("cannot read OBJ file {}: {e}", path.display()))?;
-    let mut out = RawMesh::default();
-    let mut all_have_normals = true;
-    let mut all_have_uvs = true;
-    let mut normals = vec![];
-    let mut uvs = vec![];
-    for m in &models {
-        let mesh = &m.mesh;
-        let base = out.positions.len() as u32;
-        let nv = mesh.positions.len() / 3;
-        out.positions.extend(mesh.positions.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])));
-        if mesh.normals.len() == nv * 3 && nv > 0 {
-            normals.extend(mesh.normals.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])));
-        } else {
-            all_have_normals = false;
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot read OBJ file {}: {e}", path.display()))?;
+    let text = String::from_utf8_lossy(&bytes);
+    parse_obj(&text).map_err(|(line, e)| format!("cannot read OBJ file {}:{line}: {e}", path.display()))
+}
+
+/// One face corner: indices (0-based, already resolved) of position,
+/// texture coordinate and normal.
+type Corner = (u32, Option<u32>, Option<u32>);
+
+/// [`read_obj`] on text; errors carry the 1-based line.
+pub fn parse_obj(text: &str) -> Result<RawMesh, (usize, String)> {
+    let mut positions: Vec<Vec3> = vec![];
+    let mut texcoords: Vec<Vec2> = vec![];
+    let mut vnormals: Vec<Vec3> = vec![];
+    // Faces as (line, corners), resolved once the whole file is read (a
+    // positive index may name a vertex given later).
+    let mut faces: Vec<(usize, Vec<(i64, Option<i64>, Option<i64>)>)> = vec![];
+    let mut counts_at_face: Vec<[usize; 3]> = vec![];
+    let number = |tok: Option<&str>, what: &str, line: usize| -> Result<f32, (usize, String)> {
+        let t = tok.ok_or_else(|| (line, format!("{what} is missing a number")))?;
+        let v: f32 = t.parse().map_err(|_| (line, format!("\"{t}\" in {what} is not a number")))?;
+        if !v.is_finite() {
+            return Err((line, format!("{what} has a value that is not a finite number ({t})")));
         }
-        if mesh.texcoords.len() == nv * 2 && nv > 0 {
-            uvs.extend(mesh.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], 1.0 - c[1])));
-        } else {
-            all_have_uvs = false;
+        Ok(v)
+    };
+    for (i, raw) in text.lines().enumerate() {
+        let line = i + 1;
+        let content = raw.split('#').next().unwrap_or("");
+        let mut tokens = content.split_whitespace();
+        let Some(keyword) = tokens.next() else { continue };
+        match keyword {
+            "v" => {
+                let p = Vec3::new(number(tokens.next(), "a vertex", line)?, number(tokens.next(), "a vertex", line)?, number(tokens.next(), "a vertex", line)?);
+                positions.push(p);
+            }
+            "vt" => {
+                let u = number(tokens.next(), "a texture coordinate", line)?;
+                let v = match tokens.next() {
+                    Some(t) => number(Some(t), "a texture coordinate", line)?,
+                    None => 0.0,
+                };
+                texcoords.push(Vec2::new(u, 1.0 - v));
+            }
+            "vn" => {
+                let n = Vec3::new(number(tokens.next(), "a normal", line)?, number(tokens.next(), "a normal", line)?, number(tokens.next(), "a normal", line)?);
+                vnormals.push(n);
+            }
+            "f" => {
+                let mut corners = vec![];
+                for tok in tokens {
+                    let mut parts = tok.split('/');
+                    let index = |s: Option<&str>, what: &str| -> Result<Option<i64>, (usize, String)> {
+                        match s {
+                            None | Some("") => Ok(None),
+                            Some(t) => match t.parse::<i64>() {
+                                Ok(0) => Err((line, format!("face vertex index out of bounds: {what} index 0 in \"{tok}\" (OBJ indices start at 1)"))),
+                                Ok(v) => Ok(Some(v)),
+                                Err(_) => Err((line, format!("\"{tok}\" is not a face vertex (v, v/vt, v//vn or v/vt/vn)"))),
+                            },
+                        }
+                    };
+                    let v = index(parts.next(), "vertex")?
+                        .ok_or_else(|| (line, format!("\"{tok}\" has no vertex index")))?;
+                    let vt = index(parts.next(), "texture coordinate")?;
+                    let vn = index(parts.next(), "normal")?;
+                    if parts.next().is_some() {
+                        return Err((line, format!("\"{tok}\" is not a face vertex (v, v/vt, v//vn or v/vt/vn)")));
+                    }
+                    corners.push((v, vt, vn));
+                }
+                if corners.len() < 3 {
+                    return Err((line, format!("a face has {} vertices; a face needs at least three", corners.len())));
+                }
+                faces.push((line, corners));
+                counts_at_face.push([positions.len(), texcoords.len(), vnormals.len()]);
+            }
+            _ => {}
         }
-        out.triangles.extend(mesh.indices.chunks_exact(3).map(|c| [c[0] + base, c[1] + base, c[2] + base]));
     }
-    out.normals = all_have_normals.then_some(normals);
-    out.uvs = all_have_uvs.then_some(uvs);
-    out.validate().map_err(|e| format!("{}: {e}", path.display()))
+    if faces.is_empty() {
+        return Err((text.lines().count().max(1), "the mesh has no faces".into()));
+    }
+    // Resolve: positive indices against the whole file, negative ones
+    // against the lists as they were at the face.
+    let resolve = |i: i64, total: usize, so_far: usize, what: &str, line: usize| -> Result<u32, (usize, String)> {
+        let r = if i > 0 { i - 1 } else { so_far as i64 + i };
+        if r < 0 || r >= total as i64 {
+            let have = if total == 0 { format!("the file has no {what}s") } else { format!("the file has {total}") };
+            return Err((line, format!("face vertex index out of bounds: a face names {what} {i}, but {have}")));
+        }
+        Ok(r as u32)
+    };
+    let mut corners_all: Vec<(usize, Vec<Corner>)> = Vec::with_capacity(faces.len());
+    let (mut all_uv, mut all_n) = (true, true);
+    for ((line, corners), counts) in faces.iter().zip(&counts_at_face) {
+        let mut out = Vec::with_capacity(corners.len());
+        for &(v, vt, vn) in corners {
+            let v = resolve(v, positions.len(), counts[0], "vertex", *line)?;
+            let vt = vt.map(|i| resolve(i, texcoords.len(), counts[1], "texture coordinate", *line)).transpose()?;
+            let vn = vn.map(|i| resolve(i, vnormals.len(), counts[2], "normal", *line)).transpose()?;
+            all_uv &= vt.is_some();
+            all_n &= vn.is_some();
+            out.push((v, vt, vn));
+        }
+        corners_all.push((*line, out));
+    }
+    // One vertex per distinct (position, uv, normal) in use.
+    let mut out = RawMesh::default();
+    let mut uvs = vec![];
+    let mut normals = vec![];
+    let mut map: std::collections::HashMap<Corner, u32> = std::collections::HashMap::new();
+    for (_, corners) in &corners_all {
+        let mut ids = Vec::with_capacity(corners.len());
+        for &(v, vt, vn) in corners {
+            let key = (v, vt.filter(|_| all_uv), vn.filter(|_| all_n));
+            let id = *map.entry(key).or_insert_with(|| {
+                out.positions.push(positions[v as usize]);
+                if all_uv {
+                    uvs.push(texcoords[vt.unwrap_or(0) as usize]);
+                }
+                if all_n {
+                    normals.push(vnormals[vn.unwrap_or(0) as usize]);
+                }
+                out.positions.len() as u32 - 1
+            });
+            ids.push(id);
+        }
+        for k in 1..ids.len() - 1 {
+            out.triangles.push([ids[0], ids[k], ids[k + 1]]);
+        }
+    }
+    out.normals = all_n.then_some(normals);
+    out.uvs = all_uv.then_some(uvs);
+    out.validate().map_err(|e| (1, e))
 }
 
 /// Reads an ASCII or binary PLY file with `vertex` (x, y, z and optionally

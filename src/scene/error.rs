@@ -13,13 +13,37 @@ pub struct SourceFile {
     /// The folders where relative file names in this file are looked up
     /// (shared by a scene file and the files it includes).
     pub search: Arc<super::search::SearchPaths>,
+    /// Byte offset of the start of each line, built once so that a location
+    /// costs a binary search (O(log n)) instead of a scan of the file.
+    line_starts: Vec<usize>,
 }
 
 impl SourceFile {
     /// A file of its own scene: names resolve against its folder.
     pub fn new(path: PathBuf, text: String) -> SourceFile {
         let search = Arc::new(super::search::SearchPaths::for_scene(&path));
-        SourceFile { path, text, search }
+        SourceFile::with_search(path, text, search)
+    }
+
+    /// A file whose relative names resolve through `search` (an included
+    /// file shares its document's search folders).
+    pub fn with_search(path: PathBuf, text: String, search: Arc<super::search::SearchPaths>) -> SourceFile {
+        let mut line_starts = vec![0];
+        line_starts.extend(text.bytes().enumerate().filter(|&(_, b)| b == b'\n').map(|(i, _)| i + 1));
+        SourceFile { path, text, search, line_starts }
+    }
+
+    /// The 0-based line holding byte `byte`, and that line's first byte.
+    fn line_of(&self, byte: usize) -> (usize, usize) {
+        let line = self.line_starts.partition_point(|&s| s <= byte).saturating_sub(1);
+        (line, self.line_starts[line])
+    }
+
+    /// The text of 1-based line `line`, without its line break.
+    pub fn line_text(&self, line: u32) -> &str {
+        let Some(&start) = self.line_starts.get(line.saturating_sub(1) as usize) else { return "" };
+        let end = self.line_starts.get(line as usize).map_or(self.text.len(), |&e| e - 1);
+        self.text.get(start..end.max(start)).unwrap_or("").trim_end_matches('\r')
     }
 }
 
@@ -38,32 +62,17 @@ impl Location {
 
     /// The location of a byte offset in the file.
     pub fn at_byte(file: &Arc<SourceFile>, byte: usize) -> Location {
-        use std::cell::RefCell;
-        use std::sync::Weak;
-        // Line starts of the file last asked about, so that locating every
-        // element of a large file (10 000 instances) is not quadratic.
-        thread_local! {
-            static LINES: RefCell<Option<(Weak<SourceFile>, Vec<usize>)>> = const { RefCell::new(None) };
+        let mut byte = byte.min(file.text.len());
+        while !file.text.is_char_boundary(byte) {
+            byte -= 1;
         }
-        let byte = byte.min(file.text.len());
-        let (line_index, line_start) = LINES.with(|cache| {
-            let mut cache = cache.borrow_mut();
-            let fresh = !matches!(&*cache, Some((w, _)) if w.upgrade().is_some_and(|f| Arc::ptr_eq(&f, file)));
-            if fresh {
-                let starts = std::iter::once(0).chain(file.text.bytes().enumerate().filter(|&(_, b)| b == b'\n').map(|(i, _)| i + 1)).collect();
-                *cache = Some((Arc::downgrade(file), starts));
-            }
-            let starts = cache.as_ref().map_or(&[][..], |(_, s)| s.as_slice());
-            // The last line start at or before `byte`.
-            let i = starts.partition_point(|&s| s <= byte).max(1) - 1;
-            (i, starts.get(i).copied().unwrap_or(0))
-        });
-        let col = file.text.get(line_start..byte).map_or(0, |t| t.chars().count()) as u32 + 1;
-        Location::new(file, line_index as u32 + 1, col)
+        let (line, line_start) = file.line_of(byte);
+        let col = file.text[line_start..byte].chars().count() as u32 + 1;
+        Location::new(file, line as u32 + 1, col)
     }
 
     pub fn source_line(&self) -> &str {
-        self.file.text.lines().nth(self.line.saturating_sub(1) as usize).unwrap_or("")
+        self.file.line_text(self.line)
     }
 }
 
@@ -156,5 +165,24 @@ mod tests {
         assert!(s.contains("2 |   <bsdf type=\"x\"/>"), "{s}");
         assert!(s.contains("  |   ^"), "{s}");
         assert!(s.contains("valid choices are: diffuse"), "{s}");
+    }
+
+    #[test]
+    fn line_index_matches_a_scan() {
+        let text = "a\r\nbc\n\nλx\nlast";
+        let file = Arc::new(SourceFile::new("t.xml".into(), text.into()));
+        for byte in 0..=text.len() + 3 {
+            let b = byte.min(text.len());
+            if !text.is_char_boundary(b) {
+                continue;
+            }
+            let before = &text[..b];
+            let line = before.matches('\n').count() as u32 + 1;
+            let col = before[before.rfind('\n').map_or(0, |i| i + 1)..].chars().count() as u32 + 1;
+            let loc = Location::at_byte(&file, byte);
+            assert_eq!((loc.line, loc.col), (line, col), "byte {byte}");
+            assert_eq!(loc.source_line(), text.lines().nth(line as usize - 1).unwrap_or(""));
+        }
+        assert_eq!(file.line_text(99), "");
     }
 }

@@ -42,6 +42,30 @@ pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmull
 pub const SAMPLERS: [&str; 1] = ["independent"];
 pub const INTEGRATORS: [&str; 6] = ["direct", "path", "ptracer", "stokes", "aov", "moment"];
 
+/// The most samples per pixel, from the scene or from `--spp` (Mitsuba's
+/// sample counts are 32-bit; 2^24 keeps per-pixel sums exact in f32 weights).
+pub const MAX_SPP: u32 = 1 << 24;
+
+/// A warning located at `loc`: "warning: MESSAGE (at FILE:LINE:COL)".
+fn located_warning(loc: &super::Location, message: &str) -> String {
+    format!("warning: {message} (at {}:{}:{})", loc.file.path.display(), loc.line, loc.col)
+}
+
+/// The smallest and largest value a texture takes (over texels, colours and
+/// listed spectrum samples).
+fn texture_range(t: &Texture) -> (f32, f32) {
+    let fold = |vals: &mut dyn Iterator<Item = f32>| vals.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+    match t {
+        Texture::Constant(c, _) => fold(&mut c.0.into_iter()),
+        Texture::Spectral { spectrum, .. } => fold(&mut spectrum.samples().iter().map(|&(_, v)| v)),
+        Texture::Bitmap(b) => fold(&mut b.texels.iter().flat_map(|t| t.0)),
+        Texture::Checkerboard(c) => fold(&mut c.color0.0.into_iter().chain(c.color1.0)),
+        // Its values come from a mesh resolved after the material: not
+        // checked here.
+        Texture::MeshAttribute(_) => (0.0, 0.0),
+    }
+}
+
 /// What the command line can override.
 #[derive(Clone, Debug, Default)]
 pub struct LoadOptions {
@@ -76,6 +100,9 @@ pub fn load_str(path: &Path, text: &str, options: &LoadOptions) -> Result<Scene>
 }
 
 struct Loader {
+    /// Warnings for the user (reflectance above one, clamped values), each
+    /// naming the parameter and where it is.
+    warnings: std::cell::RefCell<Vec<String>>,
     ids: HashMap<String, Arc<Node>>,
     bsdf_cache: HashMap<*const Node, u32>,
     bsdfs: Vec<Bsdf>,
@@ -176,6 +203,7 @@ impl Loader {
         let mut ids = HashMap::new();
         collect_ids(root, &mut ids)?;
         Ok(Loader {
+            warnings: Default::default(),
             ids,
             bsdf_cache: HashMap::new(),
             bsdfs: vec![],
@@ -270,6 +298,9 @@ impl Loader {
         let (camera, film, mut sampler) =
             sensor.ok_or_else(|| SceneError::at(&root.loc, "the scene has no <sensor>").with_help("add e.g. <sensor type=\"perspective\">…</sensor>"))?;
         if let Some(spp) = options.spp {
+            if !(1..=MAX_SPP).contains(&spp) {
+                return Err(SceneError::file(&root.loc.file.path, format!("the sample count {spp} is not between 1 and {MAX_SPP} (2^24)")));
+            }
             sampler.sample_count = spp;
         }
         if let Some(seed) = options.seed {
@@ -306,6 +337,7 @@ impl Loader {
             integrator,
             stokes_requested,
             environment: self.environment,
+            warnings: self.warnings.into_inner(),
         })
     }
 
@@ -531,7 +563,7 @@ impl Loader {
                 None => Mesh::compute_vertex_normals(&positions, &raw.triangles),
             })
         };
-        // tobj applied Mitsuba's default flip already; undo it if asked.
+        // The OBJ reader applied Mitsuba's default flip already; undo it if asked.
         let uvs = raw.uvs.map(|uvs| if flip_tex { uvs } else { uvs.into_iter().map(|uv| glam::Vec2::new(uv.x, 1.0 - uv.y)).collect() });
         let attributes = raw.attributes.iter().map(|(n, a)| (n.clone(), Arc::new(a.to_corners(&raw.triangles)))).collect();
         let mut mesh = Mesh::new(positions, normals, uvs, raw.triangles, flip);
@@ -659,24 +691,40 @@ impl Loader {
         Ok(Bsdf::Conductor(Conductor { eta, k, spectra, specular_reflectance }))
     }
 
-    /// A colour parameter: `rgb`/`spectrum`/`float`, or a nested (or referenced) texture.
+    /// A reflectance or transmittance (all colour inputs of BSDFs are):
+    /// `rgb`/`spectrum`/`float`, or a nested (or referenced) texture. A
+    /// negative value is an error; a value above one (more light out than
+    /// in) a warning naming the parameter.
     fn texture_input(&self, props: &Props, name: &str, default: Rgb) -> Result<Texture> {
-        if let Some(listed) = props.listed_opt(name) {
-            return Ok(Texture::Spectral { rgb: listed.to_rgb(false), spectrum: Arc::new(listed) });
-        }
-        if let Some(c) = props.color_opt(name)? {
-            return Ok(Texture::constant(c));
-        }
-        match props.child_named(name) {
-            Some(child) => {
-                let node = self.resolve(child)?;
-                if node.kind != Kind::Texture {
-                    return Err(SceneError::at(&child.loc, format!("\"{name}\" must be a colour or a <texture>, not a <{}>", node.kind.tag())));
+        let (texture, loc) = if let Some(listed) = props.listed_opt(name) {
+            (Texture::Spectral { rgb: listed.to_rgb(false), spectrum: Arc::new(listed) }, None)
+        } else if let Some(c) = props.color_opt(name)? {
+            (Texture::constant(c), None)
+        } else {
+            match props.child_named(name) {
+                Some(child) => {
+                    let node = self.resolve(child)?;
+                    if node.kind != Kind::Texture {
+                        return Err(SceneError::at(&child.loc, format!("\"{name}\" must be a colour or a <texture>, not a <{}>", node.kind.tag())));
+                    }
+                    (self.texture(&node)?, Some(node.loc.clone()))
                 }
-                self.texture(&node)
+                None => return Ok(Texture::constant(default)),
             }
-            None => Ok(Texture::constant(default)),
+        };
+        let loc = loc.unwrap_or_else(|| props.node.props.iter().find(|p| p.name == name).map_or(&props.node.loc, |p| &p.loc).clone());
+        let (lo, hi) = texture_range(&texture);
+        let what = format!("\"{name}\" of {} \"{}\"", props.node.kind.tag(), props.node.plugin);
+        if lo < 0.0 {
+            return Err(SceneError::at(&loc, format!("{what} is negative ({lo}); a reflectance or transmittance lies in [0, 1]")));
         }
+        if hi > 1.0 {
+            self.warnings.borrow_mut().push(located_warning(
+                &loc,
+                &format!("{what} is above one ({hi}): the surface gives back more light than it receives"),
+            ));
+        }
+        Ok(texture)
     }
 
     fn texture(&self, node: &Arc<Node>) -> Result<Texture> {
@@ -975,6 +1023,23 @@ impl Loader {
         Ok(SamplerSpec { sample_count, seed })
     }
 
+    /// A path depth: -1 is unlimited; values from 2^32 − 1 up are treated as
+    /// unlimited too (no path gets that long), with a warning that says so.
+    fn depth_limit(&self, props: &Props, name: &str, v: i64) -> u32 {
+        if v < 0 {
+            return u32::MAX;
+        }
+        if v >= u32::MAX as i64 {
+            let loc = props.node.props.iter().find(|p| p.name == name).map_or(&props.node.loc, |p| &p.loc);
+            self.warnings.borrow_mut().push(located_warning(
+                loc,
+                &format!("\"{name}\" = {v} is beyond {} and is treated as unlimited (as -1)", u32::MAX - 1),
+            ));
+            return u32::MAX;
+        }
+        v as u32
+    }
+
     /// The integrator, and whether it asked for Stokes output (Mitsuba's
     /// `stokes`, which wraps the integrator that does the work).
     fn integrator(&self, node: &Arc<Node>) -> Result<(Integrator, bool)> {
@@ -1024,8 +1089,8 @@ impl Loader {
                 let max_depth = props.int_checked("max_depth", -1, |v| v >= -1, "-1 (unlimited) or a non-negative integer")?;
                 let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
                 Integrator::Path(PathTracer {
-                    max_depth: if max_depth < 0 { u32::MAX } else { max_depth.min(u32::MAX as i64) as u32 },
-                    rr_depth: rr_depth.min(u32::MAX as i64) as u32,
+                    max_depth: self.depth_limit(&props, "max_depth", max_depth),
+                    rr_depth: self.depth_limit(&props, "rr_depth", rr_depth),
                     hide_emitters: props.bool("hide_emitters", false)?,
                 })
             }
@@ -1035,8 +1100,8 @@ impl Loader {
                 // Mitsuba's work-splitting knob: no effect on the image.
                 props.int_checked("samples_per_pass", 1, |v| v > 0, "positive")?;
                 Integrator::Particle(ParticleTracer {
-                    max_depth: if max_depth < 0 { u32::MAX } else { max_depth.min(u32::MAX as i64) as u32 },
-                    rr_depth: rr_depth.min(u32::MAX as i64) as u32,
+                    max_depth: self.depth_limit(&props, "max_depth", max_depth),
+                    rr_depth: self.depth_limit(&props, "rr_depth", rr_depth),
                     hide_emitters: props.bool("hide_emitters", false)?,
                 })
             }

@@ -47,6 +47,9 @@ pub struct Scene {
     pub stokes_requested: bool,
     /// The environment emitter, if any (seen by rays that leave the scene).
     pub environment: Option<u32>,
+    /// Warnings from loading (each a line "warning: …", naming the
+    /// parameter and its location), for the caller to show.
+    pub warnings: Vec<String>,
 }
 
 impl Scene {

@@ -13,6 +13,12 @@ use std::cell::Cell;
 
 /// Linear sRGB of the equal-energy spectrum of unit value (CIE 1931 2°
 /// observer, XYZ → sRGB; Mitsuba 3 gives the same triple).
+/// The largest emitted radiance, intensity or irradiance accepted: far above
+/// any physical light (the sun's radiance is about 10⁷ W m⁻² sr⁻¹ nm⁻¹),
+/// and far enough below f32::MAX (3.4·10³⁸) that spectral uplift, path
+/// throughput and film sums stay finite.
+pub const MAX_EMISSION: f32 = 1e20;
+
 pub const EQUAL_ENERGY_WHITE: Rgb = Rgb::new(1.204_794, 0.948_291, 0.908_916);
 
 pub struct Props<'a> {
@@ -242,14 +248,39 @@ impl<'a> Props<'a> {
 
     /// Emission (radiance, intensity, irradiance): a colour, or a spectrum
     /// kept as such for spectral mode (a constant `<spectrum>` is flat).
+    /// Negative emission is an error, and so is emission so large that
+    /// arithmetic along a path would overflow single precision (above
+    /// [`MAX_EMISSION`]), which would otherwise give a black image.
     pub fn emission_opt(&self, name: &str) -> Result<Option<Emission>> {
-        if let Some(listed) = self.listed_opt(name) {
-            return Ok(Some(Emission::listed(listed)));
+        let emission = if let Some(listed) = self.listed_opt(name) {
+            Emission::listed(listed)
+        } else if let Some((_, Value::Spectrum(v))) = self.find(name) {
+            Emission::flat(EQUAL_ENERGY_WHITE * *v, *v)
+        } else {
+            match self.color_opt(name)? {
+                Some(c) => Emission::rgb(c),
+                None => return Ok(None),
+            }
+        };
+        let values: Vec<f32> = match &emission.spectrum {
+            // The values given (the RGB of a spectrum is derived from them).
+            Some(s) => s.samples().iter().map(|&(_, v)| v).collect(),
+            None => emission.rgb.0.to_vec(),
+        };
+        if let Some(v) = values.iter().find(|&&v| v < 0.0) {
+            return Err(self.error_at(
+                name,
+                format!("emission \"{name}\" of {} \"{}\" is negative ({v}); light sources emit zero or more", self.node.kind.tag(), self.node.plugin),
+            ));
         }
-        if let Some((_, Value::Spectrum(v))) = self.find(name) {
-            return Ok(Some(Emission::flat(EQUAL_ENERGY_WHITE * *v, *v)));
+        if let Some(v) = values.iter().find(|&&v| v > MAX_EMISSION) {
+            return Err(self.error_at(
+                name,
+                format!("emission \"{name}\" of {} \"{}\" is {v:e}, above the largest Snell renders ({MAX_EMISSION:e})", self.node.kind.tag(), self.node.plugin),
+            )
+            .with_help("larger values overflow single-precision arithmetic along a path and give a black image; scale the scene's units"));
         }
-        Ok(self.color_opt(name)?.map(Emission::rgb))
+        Ok(Some(emission))
     }
 
     pub fn color(&self, name: &str, default: Rgb) -> Result<Rgb> {

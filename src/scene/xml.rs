@@ -19,7 +19,7 @@ use super::error::{Location, Result, SceneError, SourceFile};
 use super::search::{SearchPaths, folder_of};
 use crate::math::Transform;
 use glam::{Mat4, Vec3, Vec4};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -141,15 +141,24 @@ pub struct Node {
 pub fn parse_file(path: &Path, params: &HashMap<String, String>) -> Result<Node> {
     let mut parser = Parser::new(params, path);
     let root = parser.parse_root(path)?;
+    parser.check_overrides(&root)?;
     Ok(root)
 }
 
 /// Parses scene text as if it were read from `path` (used by tests and the API).
 pub fn parse_str(path: &Path, text: &str, params: &HashMap<String, String>) -> Result<Node> {
     let mut parser = Parser::new(params, path);
-    let file = Arc::new(SourceFile { path: path.to_path_buf(), text: text.to_string(), search: parser.search.clone() });
-    parser.parse_document(file)
+    let file = Arc::new(SourceFile::with_search(path.to_path_buf(), text.to_string(), parser.search.clone()));
+    let root = parser.parse_document(file)?;
+    parser.check_overrides(&root)?;
+    Ok(root)
 }
+
+/// Longest attribute value after `$name` substitution, and the most bytes
+/// that substitution may produce in one document (chained `<default>`s can
+/// otherwise grow a value exponentially).
+const MAX_EXPANDED_VALUE: usize = 1 << 20;
+const MAX_EXPANDED_TOTAL: usize = 256 << 20;
 
 struct Parser {
     params: HashMap<String, String>,
@@ -165,6 +174,18 @@ struct Parser {
     /// Whether the file being parsed is older than version 2.0.0 and is
     /// upgraded as Mitsuba 3 upgrades it.
     legacy: bool,
+    /// `-D` names, which must be declared by a `<default>` or used as `$name`.
+    overrides: Vec<String>,
+    /// Names declared by `<default>`, and names used as `$name`.
+    declared: HashSet<String>,
+    used: std::cell::RefCell<HashSet<String>>,
+    /// `<default>`s of each file (by path), to refuse a duplicate.
+    defaults_seen: HashMap<(std::path::PathBuf, String), u32>,
+    /// Current element depth, included files so far, elements so far.
+    depth: u64,
+    includes: u64,
+    elements: u64,
+    expanded_bytes: std::cell::Cell<usize>,
 }
 
 type XNode<'a, 'i> = roxmltree::Node<'a, 'i>;
@@ -185,26 +206,57 @@ fn attr_loc(file: &Arc<SourceFile>, node: &XNode, name: &str) -> Location {
 
 impl Parser {
     fn new(params: &HashMap<String, String>, scene_file: &Path) -> Parser {
+        let mut overrides: Vec<String> = params.keys().cloned().collect();
+        overrides.sort();
         Parser {
             params: params.clone(),
             include_depth: 0,
             search: Arc::new(SearchPaths::for_scene(scene_file)),
             folders: vec![folder_of(scene_file)],
             legacy: false,
+            overrides,
+            declared: HashSet::new(),
+            used: std::cell::RefCell::new(HashSet::new()),
+            defaults_seen: HashMap::new(),
+            depth: 0,
+            includes: 0,
+            elements: 0,
+            expanded_bytes: std::cell::Cell::new(0),
         }
+    }
+
+    /// Every `-D name=value` must name a parameter the scene declares with
+    /// `<default>` or uses as `$name`; otherwise it would be silently ignored.
+    fn check_overrides(&self, root: &Node) -> Result<()> {
+        let used = self.used.borrow();
+        for name in &self.overrides {
+            if self.declared.contains(name) || used.contains(name) {
+                continue;
+            }
+            let mut known: Vec<&str> = self.declared.iter().chain(used.iter()).map(|s| s.as_str()).collect();
+            known.sort();
+            known.dedup();
+            let e = SceneError::file(&root.loc.file.path, format!("-D {name}=…: the scene has no parameter \"{name}\""));
+            return Err(if known.is_empty() {
+                e.with_help("the scene declares no parameters (<default name=\"…\" value=\"…\"/>)")
+            } else {
+                e.with_help(format!("declared parameters are: {}", known.join(", ")))
+            });
+        }
+        Ok(())
     }
 
     fn parse_root(&mut self, path: &Path) -> Result<Node> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| SceneError::file(path, format!("cannot read scene file: {e}")))?;
-        let file = Arc::new(SourceFile { path: path.to_path_buf(), text, search: self.search.clone() });
+        let file = Arc::new(SourceFile::with_search(path.to_path_buf(), text, self.search.clone()));
         self.parse_document(file)
     }
 
     fn parse_document(&mut self, file: Arc<SourceFile>) -> Result<Node> {
         // A UTF-8 byte-order mark is not part of the first line's columns.
         let file = match file.text.strip_prefix('\u{feff}') {
-            Some(text) => Arc::new(SourceFile { path: file.path.clone(), text: text.to_string(), search: file.search.clone() }),
+            Some(text) => Arc::new(SourceFile::with_search(file.path.clone(), text.to_string(), file.search.clone())),
             None => file,
         };
         let doc = roxmltree::Document::parse(&file.text).map_err(|e| {
@@ -295,7 +347,21 @@ impl Parser {
             let end = after.find(|c: char| !(c.is_alphanumeric() || c == '_')).unwrap_or(after.len());
             let key = &after[..end];
             match self.params.get(key) {
-                Some(v) if !key.is_empty() => out.push_str(v),
+                Some(v) if !key.is_empty() => {
+                    self.used.borrow_mut().insert(key.to_string());
+                    out.push_str(v);
+                    let total = self.expanded_bytes.get() + v.len();
+                    self.expanded_bytes.set(total);
+                    if out.len() > MAX_EXPANDED_VALUE || total > MAX_EXPANDED_TOTAL {
+                        return Err(SceneError::at(
+                            &attr_loc(file, node, name),
+                            format!("substituting \"${key}\" makes this value too long ({} bytes so far)", out.len()),
+                        )
+                        .with_help(format!(
+                            "one value may grow to {MAX_EXPANDED_VALUE} bytes and a document's substitutions to {MAX_EXPANDED_TOTAL} bytes"
+                        )));
+                    }
+                }
                 _ => {
                     let mut known: Vec<&str> = self.params.keys().map(|s| s.as_str()).collect();
                     known.sort();
@@ -335,7 +401,28 @@ impl Parser {
     fn parse_children(&mut self, file: &Arc<SourceFile>, xml: &XNode, out: &mut Node) -> Result<()> {
         for child in xml.children() {
             if child.is_element() {
-                self.parse_element(file, &child, out)?;
+                self.elements += 1;
+                if self.elements > crate::limits::max_xml_nodes() {
+                    return Err(SceneError::at(
+                        &loc_of(file, &child),
+                        format!("the scene has more than {} XML elements (includes expanded)", crate::limits::max_xml_nodes()),
+                    )
+                    .with_help("raise the limit with the environment variable SNELL_MAX_XML_NODES"));
+                }
+                if self.depth >= crate::limits::max_xml_depth() {
+                    return Err(SceneError::at(
+                        &loc_of(file, &child),
+                        format!("elements are nested more than {} levels deep", crate::limits::max_xml_depth()),
+                    )
+                    .with_help(format!(
+                        "raise the limit with the environment variable SNELL_MAX_XML_DEPTH (at most {})",
+                        crate::limits::XML_DEPTH_CEILING
+                    )));
+                }
+                self.depth += 1;
+                let r = self.parse_element(file, &child, out);
+                self.depth -= 1;
+                r?;
             } else if child.is_text() && !child.text().unwrap_or("").trim().is_empty() {
                 return Err(SceneError::at(&loc_of(file, &child), "unexpected text inside an element"));
             }
@@ -367,6 +454,13 @@ impl Parser {
                 self.check_attrs(file, x, &["name", "value"])?;
                 let name = self.req_attr(file, x, "name")?;
                 let value = self.req_attr(file, x, "value")?;
+                if let Some(first) = self.defaults_seen.insert((file.path.clone(), name.clone()), loc.line) {
+                    return Err(SceneError::at(
+                        &attr_loc(file, x, "name"),
+                        format!("parameter \"{name}\" has a second <default> (the first is at line {first})"),
+                    ));
+                }
+                self.declared.insert(name.clone());
                 self.params.entry(name).or_insert(value);
             }
             "ref" => {
@@ -390,6 +484,14 @@ impl Parser {
                 if self.include_depth > 16 {
                     return Err(SceneError::at(&loc, "includes nested too deeply (a cycle?)"));
                 }
+                self.includes += 1;
+                if self.includes > crate::limits::max_includes() {
+                    return Err(SceneError::at(
+                        &loc,
+                        format!("the scene includes more than {} files in all", crate::limits::max_includes()),
+                    )
+                    .with_help("raise the limit with the environment variable SNELL_MAX_INCLUDES"));
+                }
                 let text = std::fs::read_to_string(&path).map_err(|e| {
                     SceneError::at(&attr_loc(file, x, "filename"), format!("cannot read included file {}: {e}", path.display()))
                 })?;
@@ -399,7 +501,7 @@ impl Parser {
                 let mut inner = vec![folder_of(&path)];
                 inner.extend(self.folders.iter().cloned());
                 let outer = std::mem::replace(&mut self.folders, inner);
-                let sub = self.parse_document(Arc::new(SourceFile { path, text, search: self.search.clone() }));
+                let sub = self.parse_document(Arc::new(SourceFile::with_search(path, text, self.search.clone())));
                 self.folders = outer;
                 self.include_depth -= 1;
                 let sub = sub?;

@@ -8,6 +8,11 @@
 //! | `raw` | boolean | false | use 8-bit values as they are (no sRGB decoding) |
 //! | `to_uv` | transform | identity | uv transform |
 //!
+//! An image's size is read from its header before it is decoded, and an
+//! image with more pixels than the budget ([`crate::limits::max_image_pixels`],
+//! `--max-image-pixels` or `SNELL_MAX_IMAGE_PIXELS`) is refused, so that a
+//! small file claiming a huge size cannot exhaust the memory.
+//!
 //! As in Mitsuba, integer-valued images (PNG, JPEG) are sRGB-encoded and
 //! decoded to linear unless `raw` is set; EXR is linear. uv (0,0) is the
 //! image's top-left corner; texel centres are at (i + ½)/width.
@@ -53,11 +58,31 @@ pub fn linear_to_srgb(v: f32) -> f32 {
     if v <= 0.0031308 { 12.92 * v } else { 1.055 * v.powf(1.0 / 2.4) - 0.055 }
 }
 
+/// Refuses an image of `width` × `height` pixels above the pixel budget.
+fn check_budget(path: &Path, width: u64, height: u64) -> Result<(), String> {
+    let max = crate::limits::max_image_pixels();
+    let pixels = width.saturating_mul(height);
+    if pixels > max {
+        return Err(format!(
+            "image {} is {width} × {height} = {pixels} pixels, above the budget of {max} pixels \
+             (raise it with --max-image-pixels or the environment variable SNELL_MAX_IMAGE_PIXELS)",
+            path.display()
+        ));
+    }
+    Ok(())
+}
+
 /// Reads an image as linear RGB texels (row 0 at the top).
 pub fn read_image(path: &Path, raw: bool) -> Result<(usize, usize, Vec<Rgb>), String> {
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if ext == "exr" {
         use exr::prelude::*;
+        // The header's size, before anything is allocated for the pixels.
+        let meta = exr::meta::MetaData::read_from_file(path, false)
+            .map_err(|e| format!("cannot read EXR image {}: {e}", path.display()))?;
+        for header in &meta.headers {
+            check_budget(path, header.layer_size.0 as u64, header.layer_size.1 as u64)?;
+        }
         let image = read_first_rgba_layer_from_file(
             path,
             |res, _| (res.width(), res.height(), vec![Rgb::BLACK; res.width() * res.height()]),
@@ -73,12 +98,21 @@ pub fn read_image(path: &Path, raw: bool) -> Result<(usize, usize, Vec<Rgb>), St
     if ext == "pfm" {
         return read_pfm(path);
     }
-    let img = image::ImageReader::open(path)
-        .map_err(|e| format!("cannot open image {}: {e}", path.display()))?
-        .with_guessed_format()
-        .map_err(|e| format!("cannot read image {}: {e}", path.display()))?
-        .decode()
-        .map_err(|e| format!("cannot decode image {}: {e}", path.display()))?;
+    let open = || {
+        image::ImageReader::open(path)
+            .map_err(|e| format!("cannot open image {}: {e}", path.display()))?
+            .with_guessed_format()
+            .map_err(|e| format!("cannot read image {}: {e}", path.display()))
+    };
+    let (w, h) = open()?.into_dimensions().map_err(|e| format!("cannot read image {}: {e}", path.display()))?;
+    check_budget(path, w as u64, h as u64)?;
+    let mut reader = open()?;
+    // Let the decoder allocate what the budget allows (16 bytes a pixel:
+    // RGBA, 32-bit float at most), instead of the image crate's default.
+    let mut limits = image::Limits::no_limits();
+    limits.max_alloc = Some(crate::limits::max_image_pixels().saturating_mul(16).max(1 << 26));
+    reader.limits(limits);
+    let img = reader.decode().map_err(|e| format!("cannot decode image {}: {e}", path.display()))?;
     // Floating-point images (Radiance RGBE) are linear already.
     let float = matches!(img.color(), image::ColorType::Rgb32F | image::ColorType::Rgba32F);
     let rgb = img.to_rgb32f();
@@ -119,6 +153,7 @@ fn read_pfm(path: &Path) -> Result<(usize, usize, Vec<Rgb>), String> {
         (Ok(w), Ok(h), Ok(s)) if w > 0 && h > 0 && s != 0.0 && s.is_finite() => (w, h, s),
         _ => return Err(bad("invalid width, height or scale")),
     };
+    check_budget(path, w as u64, h as u64)?;
     let need = w.checked_mul(h).and_then(|n| n.checked_mul(4 * channels)).ok_or_else(|| bad("image too large"))?;
     let data = bytes.get(pos..pos + need).ok_or_else(|| bad("truncated pixel data"))?;
     let value = |k: usize| {
