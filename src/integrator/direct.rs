@@ -26,7 +26,7 @@
 //! <integrator type="direct"><integer name="emitter_samples" value="4"/></integrator>
 //! ```
 
-use crate::bsdf::{Lobe, TransportMode};
+use crate::bsdf::{Lobe, BsdfContext};
 use crate::geometry::Ray;
 use crate::math::mis_power;
 use crate::sampler::Sampler;
@@ -65,14 +65,14 @@ impl Direct {
             for _ in 0..self.emitter_samples {
                 let Some(es) = scene.sample_emitter::<S>(&si, sampler.next_2d(), wl) else { continue };
                 let wo = si.to_local(es.d);
-                let f: S = bsdf.eval(&si, si.wi, wo, wl);
+                let f: S = bsdf.eval(&BsdfContext::RADIANCE, &si, si.wi, wo, wl);
                 if f.is_zero() {
                     continue;
                 }
                 let w = if es.delta {
                     1.0 / ne
                 } else {
-                    mis_power(es.pdf * ne / total, bsdf.pdf(&si, si.wi, wo) * nb / total) / ne
+                    mis_power(es.pdf * ne / total, bsdf.pdf::<S>(&BsdfContext::RADIANCE, &si, si.wi, wo, wl) * nb / total) / ne
                 };
                 result += f * es.weight * w;
             }
@@ -84,7 +84,7 @@ impl Direct {
             S::terminate_secondary(wl);
         }
         for _ in 0..self.bsdf_samples {
-            let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), TransportMode::Radiance, wl) else { continue };
+            let Some(bs) = bsdf.sample::<S>(&BsdfContext::RADIANCE, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { continue };
             let d = si.to_world(bs.wo);
             let ray = Ray::new(si.spawn_origin(d), d);
             let delta = bs.lobe.intersects(Lobe::DELTA);

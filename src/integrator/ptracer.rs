@@ -31,7 +31,7 @@
 //! <integrator type="ptracer"><integer name="max_depth" value="8"/></integrator>
 //! ```
 
-use crate::bsdf::{Lobe, TransportMode};
+use crate::bsdf::{BsdfContext, Lobe};
 use crate::geometry::{Ray, SurfaceInteraction};
 use crate::math::SHADOW_EPSILON;
 use crate::sampler::Sampler;
@@ -88,7 +88,7 @@ impl ParticleTracer {
             if bsdf.lobes().intersects(Lobe::SMOOTH) {
                 if let Some(c) = camera.connect(si.p, width, height) {
                     let wo = si.to_local(c.d);
-                    let f: S = bsdf.eval(&si, si.wi, wo, wl);
+                    let f: S = bsdf.eval(&BsdfContext::IMPORTANCE, &si, si.wi, wo, wl);
                     let correction = shading_correction(&si, si.wi, wo);
                     if !f.is_zero() && correction > 0.0 && self.visible(scene, si.p, si.n, camera.origin(), c.d) {
                         let value = beta * f * (correction * c.importance / (c.dist * c.dist));
@@ -102,7 +102,7 @@ impl ParticleTracer {
             if bsdf.disperses() {
                 S::terminate_secondary(wl);
             }
-            let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), TransportMode::Importance, wl) else { break };
+            let Some(bs) = bsdf.sample::<S>(&BsdfContext::IMPORTANCE, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
             let correction = shading_correction(&si, si.wi, bs.wo);
             beta *= bs.weight * correction;
             let d = si.to_world(bs.wo);

@@ -7,8 +7,7 @@ use super::error::{Result, SceneError};
 use super::props::Props;
 use super::xml::{self, Child, ChildTarget, Kind, Node};
 use super::Scene;
-use crate::bsdf::dispersion::DispersiveInterface;
-use crate::bsdf::{Bsdf, Conductor, Lobe, Dielectric, Diffuse, Plastic, Polarizer, Retarder, ThinDielectric, TwoSided};
+use crate::bsdf::{Bsdf, Conductor, Dielectric, Diffuse, Plastic, Polarizer, Retarder, ThinDielectric, TwoSided};
 use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, PointLight, SpotLight};
 use crate::film::{FilmSpec, Filter, FilterKind};
 use crate::geometry::accel::Accel;
@@ -62,6 +61,34 @@ pub fn load_str(path: &Path, text: &str, options: &LoadOptions) -> Result<Scene>
     Loader::new(&root)?.build(&root, options)
 }
 
+/// What a plugin's `from_props` may ask of the loader: its texture
+/// parameters and its nested BSDFs (which need the scene's ids).
+pub trait PluginLoader {
+    /// A colour parameter: `rgb`/`spectrum`/`float`, or a nested (or
+    /// referenced) texture; `default` if absent.
+    fn texture(&self, props: &Props, name: &str, default: Rgb) -> Result<Texture>;
+    /// The nested (inline or referenced, unnamed) BSDFs of `props`' node, built.
+    fn nested_bsdfs(&self, props: &Props) -> Result<Vec<(Arc<Node>, Bsdf)>>;
+}
+
+impl PluginLoader for Loader {
+    fn texture(&self, props: &Props, name: &str, default: Rgb) -> Result<Texture> {
+        self.texture_input(props, name, default)
+    }
+
+    fn nested_bsdfs(&self, props: &Props) -> Result<Vec<(Arc<Node>, Bsdf)>> {
+        let mut nested = self.nested(props, Kind::Bsdf)?;
+        for r in props.unnamed_refs() {
+            let t = self.resolve(r)?;
+            if t.kind != Kind::Bsdf {
+                return Err(SceneError::at(&r.loc, format!("{} takes BSDFs, not a <{}>", props.node.plugin, t.kind.tag())));
+            }
+            nested.push(t);
+        }
+        nested.into_iter().map(|n| self.make_bsdf(&n).map(|b| (n, b))).collect()
+    }
+}
+
 struct Loader {
     ids: HashMap<String, Arc<Node>>,
     bsdf_cache: HashMap<*const Node, u32>,
@@ -91,11 +118,6 @@ fn resolve_path(node: &Node, name: &str) -> PathBuf {
     let p = Path::new(name);
     if p.is_absolute() { p.to_path_buf() } else { node.loc.file.path.parent().unwrap_or(Path::new(".")).join(p) }
 }
-
-/// Default indices of refraction (Mitsuba's defaults by name).
-const BK7: f32 = 1.5046;
-const AIR: f32 = 1.000_277;
-const POLYPROPYLENE: f32 = 1.49;
 
 fn unknown_plugin(node: &Node, choices: &[&str]) -> SceneError {
     SceneError::at(&node.loc, format!("unknown {} plugin \"{}\"", node.kind.tag(), node.plugin)).with_choices(choices)
@@ -335,110 +357,21 @@ impl Loader {
         Ok(i)
     }
 
-    fn make_bsdf(&mut self, node: &Arc<Node>) -> Result<Bsdf> {
+    fn make_bsdf(&self, node: &Arc<Node>) -> Result<Bsdf> {
         let props = Props::new(node);
         let bsdf = match node.plugin.as_str() {
-            "diffuse" => Bsdf::Diffuse(Diffuse { reflectance: self.texture_input(&props, "reflectance", Rgb::new(0.5, 0.5, 0.5))? }),
-            "polarizer" => Bsdf::Polarizer(Polarizer {
-                theta: props.float_checked("theta", 0.0, f32::is_finite, "an angle in degrees")?.to_radians(),
-                transmittance: self.texture_input(&props, "transmittance", Rgb::WHITE)?,
-                polarizing: props.bool("polarizing", true)?,
-            }),
-            "retarder" => Bsdf::Retarder(Retarder {
-                theta: props.float_checked("theta", 0.0, f32::is_finite, "an angle in degrees")?.to_radians(),
-                delta: props.float_checked("delta", 90.0, f32::is_finite, "an angle in degrees")?.to_radians(),
-                transmittance: self.texture_input(&props, "transmittance", Rgb::WHITE)?,
-            }),
-            "conductor" => self.conductor(node, &props)?,
-            "dielectric" | "thindielectric" => {
-                let int_ior = props.ior_spectrum("int_ior", BK7)?;
-                let ext_ior = props.ior_spectrum("ext_ior", AIR)?;
-                let specular_reflectance = self.texture_input(&props, "specular_reflectance", Rgb::WHITE)?;
-                let specular_transmittance = self.texture_input(&props, "specular_transmittance", Rgb::WHITE)?;
-                let eta = int_ior.nominal() / ext_ior.nominal();
-                let dispersive = int_ior.is_dispersive() || ext_ior.is_dispersive();
-                if node.plugin == "dielectric" {
-                    let dispersion = dispersive.then(|| Box::new(DispersiveInterface { int_ior, ext_ior }));
-                    Bsdf::Dielectric(Dielectric { eta, dispersion, specular_reflectance, specular_transmittance })
-                } else {
-                    if dispersive {
-                        let which = if int_ior.is_dispersive() { "int_ior" } else { "ext_ior" };
-                        return Err(props.error_at(which, "thindielectric does not bend light, so it cannot disperse it: give a constant index"));
-                    }
-                    Bsdf::ThinDielectric(ThinDielectric { eta, specular_reflectance, specular_transmittance })
-                }
-            }
-            "plastic" => {
-                let int_ior = props.ior("int_ior", POLYPROPYLENE)?;
-                let ext_ior = props.ior("ext_ior", AIR)?;
-                let diffuse = self.texture_input(&props, "diffuse_reflectance", Rgb::new(0.5, 0.5, 0.5))?;
-                let specular = if props.has("specular_reflectance") || props.has_child("specular_reflectance") {
-                    Some(self.texture_input(&props, "specular_reflectance", Rgb::WHITE)?)
-                } else {
-                    None
-                };
-                let nonlinear = props.bool("nonlinear", false)?;
-                Bsdf::Plastic(Plastic::new(diffuse, specular, int_ior / ext_ior, nonlinear))
-            }
-            "twosided" => {
-                let mut nested = self.nested(&props, Kind::Bsdf)?;
-                for r in props.unnamed_refs() {
-                    let t = self.resolve(r)?;
-                    if t.kind != Kind::Bsdf {
-                        return Err(SceneError::at(&r.loc, format!("twosided takes BSDFs, not a <{}>", t.kind.tag())));
-                    }
-                    nested.push(t);
-                }
-                if nested.is_empty() || nested.len() > 2 {
-                    return Err(SceneError::at(&node.loc, "twosided takes one nested BSDF (or two: front and back)"));
-                }
-                let mut sides = vec![];
-                for n in &nested {
-                    let b = self.make_bsdf(n)?;
-                    if let Bsdf::TwoSided(_) = b {
-                        return Err(SceneError::at(&n.loc, "twosided cannot nest another twosided"));
-                    }
-                    if b.lobes().intersects(Lobe::DIFFUSE_TRANSMISSION | Lobe::GLOSSY_TRANSMISSION | Lobe::DELTA_TRANSMISSION) {
-                        return Err(SceneError::at(&n.loc, format!("twosided cannot nest a transmitting BSDF (\"{}\"); it already scatters on both sides", n.plugin)));
-                    }
-                    sides.push(b);
-                }
-                let front = sides.remove(0);
-                let back = sides.pop().unwrap_or_else(|| front.clone());
-                Bsdf::TwoSided(TwoSided { front: Box::new(front), back: Box::new(back) })
-            }
+            "diffuse" => Bsdf::Diffuse(Diffuse::from_props(&props, self)?),
+            "polarizer" => Bsdf::Polarizer(Polarizer::from_props(&props, self)?),
+            "retarder" => Bsdf::Retarder(Retarder::from_props(&props, self)?),
+            "conductor" => Bsdf::Conductor(Conductor::from_props(&props, self)?),
+            "dielectric" => Bsdf::Dielectric(Dielectric::from_props(&props, self)?),
+            "thindielectric" => Bsdf::ThinDielectric(ThinDielectric::from_props(&props, self)?),
+            "plastic" => Bsdf::Plastic(Plastic::from_props(&props, self)?),
+            "twosided" => Bsdf::TwoSided(TwoSided::from_props(&props, self)?),
             _ => return Err(unknown_plugin(node, &BSDFS)),
         };
         props.finish()?;
         Ok(bsdf)
-    }
-
-    /// `conductor`: η and k given directly, or a named metal (or `none`).
-    fn conductor(&self, node: &Arc<Node>, props: &Props) -> Result<Bsdf> {
-        let specular_reflectance = self.texture_input(props, "specular_reflectance", Rgb::WHITE)?;
-        let material = props.string_opt("material")?;
-        let given = props.has("eta") || props.has("k");
-        let mut spectra = None;
-        let (eta, k) = match material {
-            Some(name) if name != "none" => {
-                let loc = node.props.iter().find(|p| p.name == "material").map_or(&node.loc, |p| &p.loc);
-                if given {
-                    return Err(SceneError::at(loc, "give either \"material\" or \"eta\"/\"k\", not both"));
-                }
-                let metal = crate::bsdf::metals::METALS.iter().find(|m| m.name == name).ok_or_else(|| {
-                    let mut names: Vec<&str> = crate::bsdf::metals::METALS.iter().map(|m| m.name).collect();
-                    names.push("none");
-                    SceneError::at(loc, format!("unknown conductor material \"{name}\"")).with_choices(&names)
-                })?;
-                spectra = crate::bsdf::metal_spectra::METAL_SPECTRA.iter().find(|m| m.name == name);
-                (Rgb(metal.eta), Rgb(metal.k))
-            }
-            _ => (props.color("eta", Rgb::BLACK)?, props.color("k", Rgb::WHITE)?),
-        };
-        if !(eta.is_finite() && k.is_finite() && eta.0.iter().chain(&k.0).all(|&v| v >= 0.0)) {
-            return Err(SceneError::at(&node.loc, "conductor \"eta\" and \"k\" must be finite and not negative"));
-        }
-        Ok(Bsdf::Conductor(Conductor { eta, k, spectra, specular_reflectance }))
     }
 
     /// A colour parameter: `rgb`/`spectrum`/`float`, or a nested (or referenced) texture.
