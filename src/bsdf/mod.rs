@@ -30,6 +30,8 @@
 //!   parameter table in its file's doc; `scene/loader.rs` only maps plugin
 //!   names to models.
 
+pub mod blendbsdf;
+pub mod bumpmap;
 pub mod conductor;
 pub mod dielectric;
 pub mod diffuse;
@@ -37,14 +39,22 @@ pub mod dispersion;
 pub mod fresnel;
 pub mod ior;
 pub mod metal_spectra;
+pub mod mask;
 pub mod metals;
+pub mod normalmap;
+pub mod null;
 pub mod plastic;
 pub mod polarizer;
 pub mod retarder;
 pub mod thindielectric;
 pub mod twosided;
 
+pub use blendbsdf::BlendBsdf;
+pub use bumpmap::BumpMap;
 pub use conductor::Conductor;
+pub use mask::Mask;
+pub use normalmap::NormalMap;
+pub use null::Null;
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use plastic::Plastic;
@@ -68,6 +78,9 @@ bitflags! {
         const GLOSSY_TRANSMISSION = 1 << 3;
         const DELTA_REFLECTION = 1 << 4;
         const DELTA_TRANSMISSION = 1 << 5;
+        /// Straight pass-through (Mitsuba's `Null`): the surface is not
+        /// there for this fraction of rays (`mask`, `null`).
+        const NULL = 1 << 6;
         const DIFFUSE = Self::DIFFUSE_REFLECTION.bits() | Self::DIFFUSE_TRANSMISSION.bits();
         const GLOSSY = Self::GLOSSY_REFLECTION.bits() | Self::GLOSSY_TRANSMISSION.bits();
         const DELTA = Self::DELTA_REFLECTION.bits() | Self::DELTA_TRANSMISSION.bits();
@@ -201,6 +214,11 @@ pub enum Bsdf {
     Polarizer(Polarizer),
     Retarder(Retarder),
     TwoSided(TwoSided),
+    Null(Null),
+    Mask(Mask),
+    BlendBsdf(BlendBsdf),
+    NormalMap(NormalMap),
+    BumpMap(BumpMap),
 }
 
 /// Static dispatch: `$b` is bound to the model inside each arm.
@@ -215,6 +233,11 @@ macro_rules! dispatch {
             Bsdf::Polarizer($b) => $e,
             Bsdf::Retarder($b) => $e,
             Bsdf::TwoSided($b) => $e,
+            Bsdf::Null($b) => $e,
+            Bsdf::Mask($b) => $e,
+            Bsdf::BlendBsdf($b) => $e,
+            Bsdf::NormalMap($b) => $e,
+            Bsdf::BumpMap($b) => $e,
         }
     };
 }
@@ -231,6 +254,42 @@ impl Bsdf {
             Bsdf::Polarizer(_) => "polarizer",
             Bsdf::Retarder(_) => "retarder",
             Bsdf::TwoSided(_) => "twosided",
+            Bsdf::Null(_) => "null",
+            Bsdf::Mask(_) => "mask",
+            Bsdf::BlendBsdf(_) => "blendbsdf",
+            Bsdf::NormalMap(_) => "normalmap",
+            Bsdf::BumpMap(_) => "bumpmap",
+        }
+    }
+
+    /// The fraction of rays that meet the surface at `si` (1 − the
+    /// pass-through of the null lobe): `mask`'s opacity, 0 for `null`, 1
+    /// for every BSDF without a null lobe.
+    #[inline]
+    pub fn opacity(&self, si: &SurfaceInteraction) -> f32 {
+        match self {
+            Bsdf::Null(_) => 0.0,
+            Bsdf::Mask(m) => m.opacity(si),
+            _ => 1.0,
+        }
+    }
+
+    /// Whether rays pass through part of the surface: a `mask` or `null`
+    /// as the shape's BSDF (the scene then lets rays through, see
+    /// [`crate::geometry::Shape::pass_through`]).
+    #[inline]
+    pub fn passes_through(&self) -> bool {
+        matches!(self, Bsdf::Null(_) | Bsdf::Mask(_))
+    }
+
+    /// The BSDF of the part of the surface that is there: `mask`'s nested
+    /// BSDF (the integrators have already chosen, with probability
+    /// [`Bsdf::opacity`], that the ray meets it), else the BSDF itself.
+    #[inline]
+    pub fn surface(&self) -> &Bsdf {
+        match self {
+            Bsdf::Mask(m) => &m.nested,
+            b => b,
         }
     }
 

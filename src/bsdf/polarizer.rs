@@ -2,7 +2,7 @@
 //!
 //! | parameter | type | default | meaning |
 //! |---|---|---|---|
-//! | `theta` | float | 0 | angle (degrees) of the transmission axis from the surface's ∂p/∂u, clockwise about its normal |
+//! | `theta` | float or constant spectrum | 0 | angle (degrees) of the transmission axis from the surface's ∂p/∂u, clockwise about its normal (Mitsuba's tutorials write `<spectrum name="theta" value="45"/>`) |
 //! | `transmittance` | rgb / spectrum / float | 1 | scale on what passes |
 //! | `polarizing` | boolean | true | false: a neutral filter of the same transmittance |
 //!
@@ -49,11 +49,22 @@ impl Polarizer {
     /// Reads the parameters in the table above.
     pub fn from_props(props: &Props, loader: &dyn PluginLoader) -> Result<Polarizer> {
         Ok(Polarizer {
-            theta: props.float_checked("theta", 0.0, f32::is_finite, "an angle in degrees")?.to_radians(),
+            theta: angle_degrees(props, "theta", 0.0)?.to_radians(),
             transmittance: loader.texture(props, "transmittance", Rgb::WHITE)?,
             polarizing: props.bool("polarizing", true)?,
         })
     }
+}
+
+/// An angle in degrees given as a `float`/`integer` or, as Mitsuba (which
+/// reads it as a texture) also accepts, a constant `<spectrum>` or a grey
+/// `<rgb>`.
+pub(crate) fn angle_degrees(props: &Props, name: &str, default: f32) -> Result<f32> {
+    let Some(c) = props.color_opt(name)? else { return Ok(default) };
+    if c[0] != c[1] || c[1] != c[2] || !c[0].is_finite() {
+        return Err(props.error_at(name, format!("\"{name}\" must be one angle in degrees (a float, or a constant spectrum such as value=\"45\")")));
+    }
+    Ok(c[0])
 }
 
 impl BsdfModel for Polarizer {

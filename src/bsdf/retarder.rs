@@ -2,8 +2,8 @@
 //!
 //! | parameter | type | default | meaning |
 //! |---|---|---|---|
-//! | `theta` | float | 0 | angle (degrees) of the fast axis from the surface's ∂p/∂u, counter-clockwise about its normal (as Mitsuba's; its polarizer turns the other way) |
-//! | `delta` | float | 90 | retardance in degrees: 90 a quarter-wave plate, 180 a half-wave plate |
+//! | `theta` | float or constant spectrum | 0 | angle (degrees) of the fast axis from the surface's ∂p/∂u, counter-clockwise about its normal (as Mitsuba's; its polarizer turns the other way) |
+//! | `delta` | float or constant spectrum | 90 | retardance in degrees: 90 a quarter-wave plate, 180 a half-wave plate |
 //! | `transmittance` | rgb / spectrum / float | 1 | scale on what passes |
 //!
 //! Light passes straight through (a delta transmission), the component
@@ -41,8 +41,8 @@ impl Retarder {
     /// Reads the parameters in the table above.
     pub fn from_props(props: &Props, loader: &dyn PluginLoader) -> Result<Retarder> {
         Ok(Retarder {
-            theta: props.float_checked("theta", 0.0, f32::is_finite, "an angle in degrees")?.to_radians(),
-            delta: props.float_checked("delta", 90.0, f32::is_finite, "an angle in degrees")?.to_radians(),
+            theta: super::polarizer::angle_degrees(props, "theta", 0.0)?.to_radians(),
+            delta: super::polarizer::angle_degrees(props, "delta", 90.0)?.to_radians(),
             transmittance: loader.texture(props, "transmittance", Rgb::WHITE)?,
         })
     }

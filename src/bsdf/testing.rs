@@ -17,6 +17,8 @@ pub fn dummy_interaction() -> SurfaceInteraction {
         n: Vec3::Z,
         frame: Frame::from_normal(Vec3::Z),
         uv: Vec2::new(0.3, 0.6),
+        dp_du: Vec3::X,
+        dp_dv: Vec3::Y,
         shape: 0,
         wi: Vec3::Z,
     }

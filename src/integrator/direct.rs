@@ -43,7 +43,7 @@ pub struct Direct {
 impl Direct {
     pub fn li<S: Spectrum>(&self, scene: &Scene, ray: Ray, sampler: &mut Sampler, wl: &mut S::Wavelengths) -> S {
         let mut result = S::zero();
-        let hit = if self.hide_emitters { scene.intersect_hiding_emitters(&ray) } else { scene.intersect(&ray) };
+        let hit = scene.intersect_path(&ray, self.hide_emitters, sampler);
         let Some(si) = hit else {
             if !self.hide_emitters {
                 if let Some(env) = scene.environment_radiance::<S>(wl) {
@@ -88,7 +88,7 @@ impl Direct {
             let d = si.to_world(bs.wo);
             let ray = Ray::new(si.spawn_origin(d), d);
             let delta = bs.lobe.intersects(Lobe::DELTA);
-            let (le, em_pdf) = match scene.intersect(&ray) {
+            let (le, em_pdf) = match scene.intersect_path(&ray, false, sampler) {
                 Some(hit) => match scene.emitted::<S>(&hit, wl) {
                     Some(le) => (le, if delta { 0.0 } else { scene.pdf_emitter_hit(si.p, &hit) }),
                     None => continue,

@@ -45,7 +45,7 @@ impl PathTracer {
         let mut prev_delta = true;
 
         loop {
-            let hit = if self.hide_emitters && depth == 0 { scene.intersect_hiding_emitters(&ray) } else { scene.intersect(&ray) };
+            let hit = scene.intersect_path(&ray, self.hide_emitters && depth == 0, sampler);
             let visible = !(self.hide_emitters && depth == 0);
             let Some(si) = hit else {
                 if visible {

@@ -7,7 +7,7 @@ use super::error::{Result, SceneError};
 use super::props::Props;
 use super::xml::{self, Child, ChildTarget, Kind, Node};
 use super::Scene;
-use crate::bsdf::{Bsdf, Conductor, Dielectric, Diffuse, Plastic, Polarizer, Retarder, ThinDielectric, TwoSided};
+use crate::bsdf::{BlendBsdf, Bsdf, BumpMap, Conductor, Dielectric, Diffuse, Mask, NormalMap, Null, Plastic, Polarizer, Retarder, ThinDielectric, TwoSided};
 use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, PointLight, SpotLight};
 use crate::film::{FilmSpec, Filter, FilterKind};
 use crate::geometry::accel::Accel;
@@ -30,7 +30,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub const SHAPES: [&str; 6] = ["rectangle", "cube", "disk", "sphere", "obj", "ply"];
-pub const BSDFS: [&str; 8] = ["conductor", "dielectric", "diffuse", "plastic", "polarizer", "retarder", "thindielectric", "twosided"];
+pub const BSDFS: [&str; 13] = [
+    "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer", "retarder", "thindielectric", "twosided",
+];
 pub const TEXTURES: [&str; 2] = ["bitmap", "checkerboard"];
 pub const EMITTERS: [&str; 5] = ["area", "point", "spot", "constant", "directional"];
 pub const SENSORS: [&str; 2] = ["perspective", "orthographic"];
@@ -69,6 +71,8 @@ pub trait PluginLoader {
     fn texture(&self, props: &Props, name: &str, default: Rgb) -> Result<Texture>;
     /// The nested (inline or referenced, unnamed) BSDFs of `props`' node, built.
     fn nested_bsdfs(&self, props: &Props) -> Result<Vec<(Arc<Node>, Bsdf)>>;
+    /// The nested inline textures of `props`' node, whatever their names, built.
+    fn nested_textures(&self, props: &Props) -> Result<Vec<(Arc<Node>, Texture)>>;
 }
 
 impl PluginLoader for Loader {
@@ -86,6 +90,11 @@ impl PluginLoader for Loader {
             nested.push(t);
         }
         nested.into_iter().map(|n| self.make_bsdf(&n).map(|b| (n, b))).collect()
+    }
+
+    fn nested_textures(&self, props: &Props) -> Result<Vec<(Arc<Node>, Texture)>> {
+        let nested = self.nested(props, Kind::Texture)?;
+        nested.into_iter().map(|n| self.texture(&n).map(|t| (n, t))).collect()
     }
 }
 
@@ -221,7 +230,6 @@ impl Loader {
         }
         let accel = Accel::build(&self.shapes);
         Ok(Scene {
-            shapes: self.shapes,
             bsdfs: self.bsdfs,
             emitters: self.emitters,
             accel,
@@ -231,6 +239,8 @@ impl Loader {
             integrator,
             stokes_requested,
             environment: self.environment,
+            pass_through: self.shapes.iter().any(|s| s.pass_through),
+            shapes: self.shapes,
         })
     }
 
@@ -285,7 +295,8 @@ impl Loader {
         };
         props.finish()?;
         let tangent_frame = self.bsdfs[bsdf as usize].needs_tangent_frame();
-        let shape = Shape { geometry, bsdf, emitter, tangent_frame };
+        let pass_through = self.bsdfs[bsdf as usize].passes_through() && emitter.is_none();
+        let shape = Shape { geometry, bsdf, emitter, tangent_frame, pass_through };
         if shape.area() <= 0.0 || !shape.area().is_finite() {
             return Err(SceneError::at(&node.loc, format!("this {} has zero or non-finite surface area", node.plugin)));
         }
@@ -368,6 +379,11 @@ impl Loader {
             "thindielectric" => Bsdf::ThinDielectric(ThinDielectric::from_props(&props, self)?),
             "plastic" => Bsdf::Plastic(Plastic::from_props(&props, self)?),
             "twosided" => Bsdf::TwoSided(TwoSided::from_props(&props, self)?),
+            "null" => Bsdf::Null(Null),
+            "mask" => Bsdf::Mask(Mask::from_props(&props, self)?),
+            "blendbsdf" => Bsdf::BlendBsdf(BlendBsdf::from_props(&props, self)?),
+            "normalmap" => Bsdf::NormalMap(NormalMap::from_props(&props, self)?),
+            "bumpmap" => Bsdf::BumpMap(BumpMap::from_props(&props, self)?),
             _ => return Err(unknown_plugin(node, &BSDFS)),
         };
         props.finish()?;

@@ -123,6 +123,32 @@ impl Bitmap {
         }
     }
 
+    /// The uv gradient of the luminance of the bilinear interpolation, as
+    /// Mitsuba's `eval_1_grad`: the partials in texel units on the cell
+    /// holding the point, taken back through `to_uv` (transpose of its
+    /// linear part) and scaled by the resolution. Zero for `nearest`.
+    pub fn eval_1_grad(&self, uv: Vec2) -> Vec2 {
+        if self.filter == Filter::Nearest {
+            return Vec2::ZERO;
+        }
+        let st = self.to_uv.transform_point2(uv);
+        if !st.is_finite() {
+            return Vec2::ZERO;
+        }
+        let (x, y) = (st.x * self.width as f32 - 0.5, st.y * self.height as f32 - 0.5);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let lum = |x, y| super::luminance(self.texel(x, y));
+        let (f00, f10, f01, f11) = (lum(x0, y0), lum(x0 + 1, y0), lum(x0, y0 + 1), lum(x0 + 1, y0 + 1));
+        let dx = (1.0 - fy) * (f10 - f00) + fy * (f11 - f01);
+        let dy = (1.0 - fx) * (f01 - f00) + fx * (f11 - f10);
+        // df/du = Σ_k df/dst_k · dst_k/du: the transpose of to_uv's matrix.
+        let m = self.to_uv.matrix2;
+        let (dx, dy) = (dx * self.width as f32, dy * self.height as f32);
+        Vec2::new(m.x_axis.x * dx + m.x_axis.y * dy, m.y_axis.x * dx + m.y_axis.y * dy)
+    }
+
     pub fn max_value(&self) -> f32 {
         self.texels.iter().flat_map(|t| t.0).fold(0.0, f32::max)
     }

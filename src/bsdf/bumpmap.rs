@@ -1,0 +1,111 @@
+//! `bumpmap` — perturbs the shading frame of a nested BSDF by a height field.
+//!
+//! | parameter | type | default | meaning |
+//! |---|---|---|---|
+//! | (nested) | texture | — (required) | the height field h(u, v) (any name; a colour texture counts by its luminance; give a bitmap `raw="true"` to use its 8-bit values as they are) |
+//! | `scale` | float | 1 | multiplier on the height's gradient |
+//! | (nested) | bsdf | — | the BSDF seen in the perturbed frame (exactly one) |
+//!
+//! As in Mitsuba 3.9: the gradient (∂h/∂u, ∂h/∂v) · `scale` of the texture
+//! (for a bilinear bitmap, that of its bilinear interpolation; zero for
+//! piecewise-constant textures) displaces the surface along its shading
+//! normal n, ignoring the change of n itself:
+//! ∂p'/∂u = ∂p/∂u + n (∂h/∂u − n·∂p/∂u), the same for v, and the
+//! perturbed normal is ∂p'/∂u × ∂p'/∂v, turned to the side of the geometric
+//! normal. ∂p/∂u, ∂p/∂v are those of Mitsuba's parametrisation of the shape
+//! (their length matters: a sphere's ∂p/∂u is 2πr long at the equator). The
+//! nested BSDF is then used in that frame with the side rule of
+//! `normalmap`. Only height variations matter; a constant offset does not.
+//!
+//! ```xml
+//! <bsdf type="bumpmap">
+//!     <texture name="arbitrary" type="bitmap">
+//!         <boolean name="raw" value="true"/>
+//!         <string name="filename" value="textures/bumpmap.jpg"/>
+//!     </texture>
+//!     <float name="scale" value="0.5"/>
+//!     <bsdf type="diffuse"/>
+//! </bsdf>
+//! ```
+
+use super::normalmap::{Perturbed, perturbed_frame, single_nested};
+use super::{Bsdf, BsdfContext, BsdfModel, BsdfSample, Lobe};
+use crate::geometry::SurfaceInteraction;
+use crate::math::Frame;
+use crate::scene::error::{Result, SceneError};
+use crate::scene::loader::PluginLoader;
+use crate::scene::props::Props;
+use crate::spectrum::Spectrum;
+use crate::texture::Texture;
+use glam::{Vec2, Vec3};
+
+#[derive(Clone, Debug)]
+pub struct BumpMap {
+    pub height: Texture,
+    pub scale: f32,
+    pub nested: Box<Bsdf>,
+}
+
+impl BumpMap {
+    /// Reads the parameters in the table above.
+    pub fn from_props(props: &Props, loader: &dyn PluginLoader) -> Result<BumpMap> {
+        let scale = props.float_checked("scale", 1.0, f32::is_finite, "a finite number")?;
+        let mut textures = loader.nested_textures(props)?;
+        if textures.len() != 1 {
+            let loc = textures.get(1).map_or(&props.node.loc, |(n, _)| &n.loc);
+            return Err(SceneError::at(loc, format!("bumpmap takes exactly one nested height texture, found {}", textures.len())));
+        }
+        let height = textures.remove(0).1;
+        let nested = single_nested(props, loader, "bumpmap")?;
+        Ok(BumpMap { height, scale, nested: Box::new(nested) })
+    }
+
+    /// The perturbed frame, in the coordinates of `si`'s shading frame.
+    fn frame(&self, si: &SurfaceInteraction) -> Frame {
+        let g = self.height.eval_1_grad(si.uv) * self.scale;
+        let n = si.frame.n;
+        let dp_du = si.dp_du + n * (g.x - n.dot(si.dp_du));
+        let dp_dv = si.dp_dv + n * (g.y - n.dot(si.dp_dv));
+        let mut bumped = dp_du.cross(dp_dv);
+        if si.n.dot(bumped) < 0.0 {
+            bumped = -bumped;
+        }
+        if !bumped.is_finite() {
+            return perturbed_frame(si, Vec3::Z);
+        }
+        perturbed_frame(si, si.to_local(bumped))
+    }
+}
+
+impl BsdfModel for BumpMap {
+    fn lobes(&self) -> Lobe {
+        self.nested.lobes()
+    }
+
+    fn has_mueller_model(&self) -> bool {
+        self.nested.has_mueller_model()
+    }
+
+    fn needs_tangent_frame(&self) -> bool {
+        true
+    }
+
+    fn disperses(&self) -> bool {
+        self.nested.disperses()
+    }
+
+    #[inline]
+    fn eval<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
+        Perturbed::new(si, self.frame(si), &self.nested).eval(ctx, wi, wo, wl)
+    }
+
+    #[inline]
+    fn pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> f32 {
+        Perturbed::new(si, self.frame(si), &self.nested).pdf::<S>(ctx, wi, wo, wl)
+    }
+
+    #[inline]
+    fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+        Perturbed::new(si, self.frame(si), &self.nested).sample(ctx, wi, u1, u2, wl)
+    }
+}
