@@ -5,6 +5,8 @@
 //! | (nested) | texture | — (required) | the height field h(u, v) (any name; a colour texture counts by its luminance; give a bitmap `raw="true"` to use its 8-bit values as they are) |
 //! | `scale` | float | 1 | multiplier on the height's gradient |
 //! | (nested) | bsdf | — | the BSDF seen in the perturbed frame (exactly one) |
+//! | `flip_invalid_normals` | boolean | true | as for `normalmap` |
+//! | `use_shadowing_function` | boolean | true | as for `normalmap` |
 //!
 //! As in Mitsuba 3.9: the gradient (∂h/∂u, ∂h/∂v) · `scale` of the texture
 //! (for a bilinear bitmap, that of its bilinear interpolation; zero for
@@ -14,8 +16,10 @@
 //! perturbed normal is ∂p'/∂u × ∂p'/∂v, turned to the side of the geometric
 //! normal. ∂p/∂u, ∂p/∂v are those of Mitsuba's parametrisation of the shape
 //! (their length matters: a sphere's ∂p/∂u is 2πr long at the equator). The
-//! nested BSDF is then used in that frame with the side rule of
-//! `normalmap`. Only height variations matter; a constant offset does not.
+//! nested BSDF is then used in that frame with the rules of `normalmap`
+//! (mirrored normals, side rule, shadowing term), as Mitsuba 3.9.1's
+//! shared `PerturbedBSDF` does. Only height variations matter; a constant
+//! offset does not.
 //!
 //! ```xml
 //! <bsdf type="bumpmap">
@@ -28,10 +32,9 @@
 //! </bsdf>
 //! ```
 
-use super::normalmap::{Perturbed, perturbed_frame, single_nested};
+use super::normalmap::{PerturbOptions, Perturbed, single_nested};
 use super::{Bsdf, BsdfContext, BsdfModel, BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
-use crate::math::Frame;
 use crate::scene::error::{Result, SceneError};
 use crate::scene::loader::PluginLoader;
 use crate::scene::props::Props;
@@ -44,6 +47,7 @@ pub struct BumpMap {
     pub height: Texture,
     pub scale: f32,
     pub nested: Box<Bsdf>,
+    pub options: PerturbOptions,
 }
 
 impl BumpMap {
@@ -57,23 +61,20 @@ impl BumpMap {
         }
         let height = textures.remove(0).1;
         let nested = single_nested(props, loader, "bumpmap")?;
-        Ok(BumpMap { height, scale, nested: Box::new(nested) })
+        Ok(BumpMap { height, scale, nested: Box::new(nested), options: PerturbOptions::from_props(props)? })
     }
 
-    /// The perturbed frame, in the coordinates of `si`'s shading frame.
-    fn frame(&self, si: &SurfaceInteraction) -> Frame {
+    /// The perturbed normal (unnormalised), in `si`'s shading frame.
+    fn perturbation(&self, si: &SurfaceInteraction) -> Vec3 {
         let g = self.height.eval_1_grad(si.uv) * self.scale;
         let n = si.frame.n;
         let dp_du = si.dp_du + n * (g.x - n.dot(si.dp_du));
         let dp_dv = si.dp_dv + n * (g.y - n.dot(si.dp_dv));
-        let mut bumped = dp_du.cross(dp_dv);
-        if si.n.dot(bumped) < 0.0 {
-            bumped = -bumped;
+        let mut cr = dp_du.cross(dp_dv);
+        if si.n.dot(cr) < 0.0 {
+            cr = -cr;
         }
-        if !bumped.is_finite() {
-            return perturbed_frame(si, Vec3::Z);
-        }
-        perturbed_frame(si, si.to_local(bumped))
+        if cr.is_finite() { si.to_local(cr) } else { Vec3::Z }
     }
 }
 
@@ -96,16 +97,16 @@ impl BsdfModel for BumpMap {
 
     #[inline]
     fn eval<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
-        Perturbed::new(si, self.frame(si), &self.nested).eval(ctx, wi, wo, wl)
+        Perturbed::new(si, self.perturbation(si), self.options, &self.nested).eval(ctx, wi, wo, wl)
     }
 
     #[inline]
     fn pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> f32 {
-        Perturbed::new(si, self.frame(si), &self.nested).pdf::<S>(ctx, wi, wo, wl)
+        Perturbed::new(si, self.perturbation(si), self.options, &self.nested).pdf::<S>(ctx, wi, wo, wl)
     }
 
     #[inline]
     fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
-        Perturbed::new(si, self.frame(si), &self.nested).sample(ctx, wi, u1, u2, wl)
+        Perturbed::new(si, self.perturbation(si), self.options, &self.nested).sample(ctx, wi, u1, u2, wl)
     }
 }

@@ -5,17 +5,23 @@
 //! | `normalmap` | texture | — (required) | RGB texture whose value c gives the normal 2c − 1 in the surface's tangent frame (x along ∂p/∂u, z the shading normal); give a bitmap `raw="true"` so its 8-bit values are not sRGB-decoded |
 //! | (nested) | bsdf | — | the BSDF seen in the perturbed frame (exactly one) |
 //!
-//! As in Mitsuba 3.9: at each hit the normal n' = normalize(2c − 1) is
-//! read in the shading frame built from ∂p/∂u (so a shape with a normal map
-//! builds that frame), the perturbed frame is n' with its tangent ∂p/∂u made
-//! perpendicular to n', and the nested BSDF is evaluated, given a density
-//! and sampled with both directions expressed in that frame. A direction
-//! counts only when it lies on the same side of the unperturbed and the
-//! perturbed surface (cos θ · cos θ' > 0): light never leaks through the
-//! geometric surface because the normal tilts. (Mitsuba makes the perturbed
-//! tangent perpendicular to the world ∂p/∂u mixed with the local normal; the
-//! tangent matters only to anisotropic BSDFs, and here it is ∂p/∂u in the
-//! shading frame.)
+//! | `flip_invalid_normals` | boolean | true | mirror the normal's tilt when the incident direction would see the perturbed surface from behind (Schüssler et al. 2017) |
+//! | `use_shadowing_function` | boolean | true | attenuate by the microfacet shadowing term of Estevez Conty and Kulla (Ray Tracing Gems 2019) against the bump terminator |
+//!
+//! As in Mitsuba 3.9.1 (its `PerturbedBSDF`, shared with `bumpmap`): at
+//! each hit the normal n' = 2c − 1 is read in the shading frame whose
+//! tangent is ∂p/∂u (so a shape with a normal map builds that frame). If
+//! the incident direction lies on the other side of n' than of the shading
+//! normal, n' is mirrored about the normal (−x, −y, z). The perturbed frame
+//! is n' normalised with the frame's x axis made perpendicular to it; the
+//! nested BSDF is evaluated, given a density and sampled with both
+//! directions expressed in that frame. A direction counts only when it
+//! lies on the same side of the unperturbed and the perturbed surface
+//! (cos θ · cos θ' > 0). `eval` and the sample weight (not the pdf) are
+//! multiplied by the shadowing term
+//! G = 2 / (1 + √(1 + α² tan²θ_o)), α² = min(tan²θ' / 8, 1),
+//! θ' the tilt of n', θ_o that of the outgoing direction from the
+//! unperturbed normal.
 //!
 //! ```xml
 //! <bsdf type="normalmap">
@@ -41,6 +47,23 @@ use glam::{Vec2, Vec3};
 pub struct NormalMap {
     pub normalmap: Texture,
     pub nested: Box<Bsdf>,
+    pub options: PerturbOptions,
+}
+
+/// The options `normalmap` and `bumpmap` share.
+#[derive(Clone, Copy, Debug)]
+pub struct PerturbOptions {
+    pub flip_invalid_normals: bool,
+    pub use_shadowing_function: bool,
+}
+
+impl PerturbOptions {
+    pub(crate) fn from_props(props: &Props) -> Result<PerturbOptions> {
+        Ok(PerturbOptions {
+            flip_invalid_normals: props.bool("flip_invalid_normals", true)?,
+            use_shadowing_function: props.bool("use_shadowing_function", true)?,
+        })
+    }
 }
 
 impl NormalMap {
@@ -51,14 +74,13 @@ impl NormalMap {
         }
         let normalmap = loader.texture(props, "normalmap", Rgb::new(0.5, 0.5, 1.0))?;
         let nested = single_nested(props, loader, "normalmap")?;
-        Ok(NormalMap { normalmap, nested: Box::new(nested) })
+        Ok(NormalMap { normalmap, nested: Box::new(nested), options: PerturbOptions::from_props(props)? })
     }
 
-    /// The perturbed frame, in the coordinates of `si`'s shading frame.
-    fn frame(&self, si: &SurfaceInteraction) -> Frame {
+    /// The perturbed normal (unnormalised), in `si`'s shading frame.
+    fn perturbation(&self, si: &SurfaceInteraction) -> Vec3 {
         let c = self.normalmap.eval(si.uv);
-        let n = Vec3::new(2.0 * c[0] - 1.0, 2.0 * c[1] - 1.0, 2.0 * c[2] - 1.0);
-        perturbed_frame(si, n)
+        Vec3::new(2.0 * c[0] - 1.0, 2.0 * c[1] - 1.0, 2.0 * c[2] - 1.0)
     }
 }
 
@@ -72,31 +94,51 @@ pub(crate) fn single_nested(props: &Props, loader: &dyn PluginLoader, plugin: &s
     Ok(nested.remove(0).1)
 }
 
-/// The frame about the local normal `n` (unnormalised) whose tangent is ∂p/∂u
-/// made perpendicular to it, in the coordinates of `si`'s shading frame;
-/// the unperturbed frame if `n` is degenerate.
-pub(crate) fn perturbed_frame(si: &SurfaceInteraction, n: Vec3) -> Frame {
-    let Some(n) = n.try_normalize() else {
-        return Frame { s: Vec3::X, t: Vec3::Y, n: Vec3::Z };
-    };
-    let dp_du = si.to_local(si.dp_du);
-    let dp_du = if dp_du.length_squared() > 0.0 { dp_du } else { Vec3::X };
-    Frame::from_normal_and_tangent(n, dp_du)
+/// tan²θ of a local direction (infinite on the horizon).
+#[inline]
+fn tan_theta_2(v: Vec3) -> f32 {
+    (1.0 - v.z * v.z).max(0.0) / (v.z * v.z)
 }
 
-/// Evaluates, gives the density of and samples `nested` in the frame `pf`
-/// (local to `si`'s shading frame), with the side rule above.
+/// The bump-terminator shadowing term for perturbed normal `n` and
+/// outgoing direction `wo`, both local to the unperturbed frame.
+#[inline]
+pub(crate) fn shadow_terminator(n: Vec3, wo: Vec3) -> f32 {
+    let alpha2 = (0.125 * tan_theta_2(n)).min(1.0);
+    let g = 2.0 / (1.0 + (1.0 + alpha2 * tan_theta_2(wo)).sqrt());
+    if g.is_finite() { g } else { 0.0 }
+}
+
+/// The nested BSDF seen in the perturbed frame `pf` (local to `si`'s
+/// shading frame), with the side rule and shadowing term above.
 pub(crate) struct Perturbed<'a> {
     pub si: SurfaceInteraction,
     pub pf: Frame,
     pub nested: &'a Bsdf,
+    pub shadowing: bool,
 }
 
 impl<'a> Perturbed<'a> {
-    pub fn new(si: &SurfaceInteraction, pf: Frame, nested: &'a Bsdf) -> Perturbed<'a> {
+    /// The perturbed frame for the unnormalised local normal `n`.
+    pub fn new(si: &SurfaceInteraction, n: Vec3, options: PerturbOptions, nested: &'a Bsdf) -> Perturbed<'a> {
+        let mut n = n;
+        if options.flip_invalid_normals && si.wi.z * si.wi.dot(n) <= 0.0 {
+            n = Vec3::new(-n.x, -n.y, n.z);
+        }
+        let n = match n.try_normalize() {
+            Some(n) => n,
+            None => Vec3::Z,
+        };
+        let s = (Vec3::X - n * n.x).try_normalize().unwrap_or(Vec3::Y);
+        let pf = Frame { s, t: n.cross(s), n };
         let world = Frame { s: si.to_world(pf.s), t: si.to_world(pf.t), n: si.to_world(pf.n) };
         let psi = SurfaceInteraction { frame: world, wi: pf.to_local(si.wi), ..*si };
-        Perturbed { si: psi, pf, nested }
+        Perturbed { si: psi, pf, nested, shadowing: options.use_shadowing_function }
+    }
+
+    #[inline]
+    fn shadow(&self, wo: Vec3) -> f32 {
+        if self.shadowing { shadow_terminator(self.pf.n, wo) } else { 1.0 }
     }
 
     #[inline]
@@ -105,7 +147,7 @@ impl<'a> Perturbed<'a> {
         if !(wo.z * pwo.z > 0.0) {
             return S::zero();
         }
-        self.nested.eval::<S>(ctx, &self.si, self.pf.to_local(wi), pwo, wl)
+        self.nested.eval::<S>(ctx, &self.si, self.pf.to_local(wi), pwo, wl) * self.shadow(wo)
     }
 
     #[inline]
@@ -124,7 +166,7 @@ impl<'a> Perturbed<'a> {
         if !(wo.z * s.wo.z > 0.0) {
             return None;
         }
-        Some(BsdfSample { wo, ..s })
+        Some(BsdfSample { wo, weight: s.weight * self.shadow(wo), ..s })
     }
 }
 
@@ -147,16 +189,16 @@ impl BsdfModel for NormalMap {
 
     #[inline]
     fn eval<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
-        Perturbed::new(si, self.frame(si), &self.nested).eval(ctx, wi, wo, wl)
+        Perturbed::new(si, self.perturbation(si), self.options, &self.nested).eval(ctx, wi, wo, wl)
     }
 
     #[inline]
     fn pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> f32 {
-        Perturbed::new(si, self.frame(si), &self.nested).pdf::<S>(ctx, wi, wo, wl)
+        Perturbed::new(si, self.perturbation(si), self.options, &self.nested).pdf::<S>(ctx, wi, wo, wl)
     }
 
     #[inline]
     fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
-        Perturbed::new(si, self.frame(si), &self.nested).sample(ctx, wi, u1, u2, wl)
+        Perturbed::new(si, self.perturbation(si), self.options, &self.nested).sample(ctx, wi, u1, u2, wl)
     }
 }
