@@ -125,3 +125,68 @@ impl BsdfModel for BlendBsdf {
         Some(BsdfSample { weight: f * (1.0 / pdf), pdf, ..s })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::testing::*;
+    use crate::bsdf::{Conductor, Diffuse, Plastic};
+
+    fn diffuse(r: f32, g: f32, b: f32) -> Bsdf {
+        Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(Rgb::new(r, g, b)) })
+    }
+
+    fn blend(w: f32, a: Bsdf, b: Bsdf) -> Bsdf {
+        Bsdf::BlendBsdf(BlendBsdf { weight: Texture::constant(Rgb::new(w, w, w)), nested: Box::new([a, b]) })
+    }
+
+    #[test]
+    fn blend_of_two_diffuse_is_the_diffuse_of_the_blended_albedo() {
+        let b = blend(0.3, diffuse(0.9, 0.5, 0.1), diffuse(0.1, 0.2, 0.8));
+        let wi = incident(0.5, 0.4);
+        let albedo = estimate_albedo(&b, wi, 100_000, 3);
+        let expect = [0.7 * 0.9 + 0.3 * 0.1, 0.7 * 0.5 + 0.3 * 0.2, 0.7 * 0.1 + 0.3 * 0.8];
+        for c in 0..3 {
+            assert!((albedo[c] - expect[c]).abs() < 0.01, "{albedo:?} vs {expect:?}");
+        }
+        let si = dummy_interaction();
+        let f: Rgb = b.eval(&BsdfContext::RADIANCE, &si, wi, Vec3::Z, &());
+        assert!((f[0] - expect[0] / std::f32::consts::PI).abs() < 1e-5);
+        chi2_test(&b, wi, 5);
+        check_sample_consistency(&b, wi, 7);
+    }
+
+    /// E[sample weight]: the albedo including delta lobes.
+    fn sampled_albedo(b: &Bsdf, wi: Vec3, n: usize, seed: u64) -> [f64; 3] {
+        let si = SurfaceInteraction { wi, ..dummy_interaction() };
+        let mut rng = crate::math::Pcg32::new(seed, 3);
+        let mut sum = [0.0f64; 3];
+        for _ in 0..n {
+            let u1 = rng.next_f32();
+            let u2 = Vec2::new(rng.next_f32(), rng.next_f32());
+            if let Some(s) = b.sample::<Rgb>(&BsdfContext::RADIANCE, &si, wi, u1, u2, &()) {
+                for c in 0..3 {
+                    sum[c] += s.weight[c] as f64;
+                }
+            }
+        }
+        sum.map(|v| v / n as f64)
+    }
+
+    #[test]
+    fn blend_with_a_delta_lobe_keeps_both_parts() {
+        // 40 % gold-coloured mirror, 60 % plastic (diffuse + delta coat).
+        let mirror = Bsdf::Conductor(Conductor { eta: Rgb::new(0.2, 0.4, 1.4), k: Rgb::new(3.9, 2.4, 1.8), spectra: None, specular_reflectance: Texture::constant(Rgb::WHITE) });
+        let plastic = Bsdf::Plastic(Plastic::new(Texture::constant(Rgb::new(0.5, 0.4, 0.3)), None, 1.5, false));
+        let wi = incident(0.7, 1.0);
+        let a_plastic = sampled_albedo(&plastic, wi, 400_000, 11);
+        let a_mirror = sampled_albedo(&mirror, wi, 1000, 12);
+        let b = blend(0.4, plastic, mirror);
+        let a = sampled_albedo(&b, wi, 400_000, 13);
+        for c in 0..3 {
+            let expect = 0.6 * a_plastic[c] + 0.4 * a_mirror[c];
+            assert!((a[c] - expect).abs() < 0.006, "channel {c}: {} vs {expect}", a[c]);
+        }
+        check_sample_consistency(&b, wi, 17);
+    }
+}

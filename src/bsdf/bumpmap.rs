@@ -110,3 +110,43 @@ impl BsdfModel for BumpMap {
         Perturbed::new(si, self.perturbation(si), self.options, &self.nested).sample(ctx, wi, u1, u2, wl)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::Diffuse;
+    use crate::bsdf::testing::*;
+    use crate::spectrum::Rgb;
+    use crate::texture::bitmap::{Bitmap, Filter, Wrap};
+    use std::f32::consts::PI;
+    use std::sync::Arc;
+
+    #[test]
+    fn a_linear_ramp_tilts_the_normal_by_its_slope() {
+        // Height c·i at texel i (8 texels across): ∂h/∂u = 8c between texel
+        // centres. On a plane with ∂p/∂u = (2,0,0), ∂p/∂v = (0,2,0) the bumped
+        // normal is (2,0,s∂h/∂u) × (0,2,0) ∝ (-s∂h/∂u / 2, 0, 1).
+        let c = 0.05;
+        let texels = (0..4).flat_map(|_| (0..8).map(|i| Rgb::new(c * i as f32, c * i as f32, c * i as f32))).collect();
+        let height = Texture::Bitmap(Arc::new(Bitmap { width: 8, height: 4, texels, filter: Filter::Bilinear, wrap: Wrap::Clamp, to_uv: glam::Affine2::IDENTITY }));
+        let scale = 1.5;
+        let b = Bsdf::BumpMap(BumpMap {
+            height,
+            scale,
+            nested: Box::new(Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(Rgb::new(0.5, 0.5, 0.5)) })),
+            options: PerturbOptions { flip_invalid_normals: true, use_shadowing_function: false },
+        });
+        let wi = incident(0.1, 0.0);
+        let si = SurfaceInteraction { wi, uv: glam::Vec2::new(0.47, 0.5), dp_du: Vec3::new(2.0, 0.0, 0.0), dp_dv: Vec3::new(0.0, 2.0, 0.0), ..dummy_interaction() };
+        let n = Vec3::new(-scale * 8.0 * c / 2.0, 0.0, 1.0).normalize();
+        for wo in [Vec3::Z, incident(0.6, 0.0), incident(0.6, PI), incident(1.2, 1.0)] {
+            let f: Rgb = b.eval(&BsdfContext::RADIANCE, &si, wi, wo, &());
+            assert!((f[0] - 0.5 / PI * n.dot(wo).max(0.0)).abs() < 1e-5, "wo {wo}: {} vs {}", f[0], 0.5 / PI * n.dot(wo));
+        }
+        // A constant offset changes nothing: no gradient, no tilt.
+        let flat = Bsdf::BumpMap(BumpMap { height: Texture::constant(Rgb::new(0.7, 0.7, 0.7)), ..match &b { Bsdf::BumpMap(m) => m.clone(), _ => unreachable!() } });
+        let f: Rgb = flat.eval(&BsdfContext::RADIANCE, &si, wi, incident(0.6, 0.0), &());
+        assert!((f[0] - 0.5 / PI * incident(0.6, 0.0).z).abs() < 1e-6);
+        check_sample_consistency(&b, wi, 3);
+    }
+}

@@ -103,3 +103,42 @@ impl BsdfModel for Mask {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bsdf::Diffuse;
+    use crate::bsdf::testing::*;
+
+    #[test]
+    fn mask_scales_the_nested_bsdf_and_passes_the_rest_straight_through() {
+        let nested = Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(Rgb::new(0.8, 0.6, 0.4)) });
+        let m = Bsdf::Mask(Mask { opacity: Texture::constant(Rgb::new(0.3, 0.3, 0.3)), nested: Box::new(nested.clone()) });
+        let si = dummy_interaction();
+        assert_eq!(m.opacity(&si), 0.3);
+        assert!(m.passes_through() && m.lobes().contains(Lobe::NULL));
+        let (wi, wo) = (incident(0.4, 0.1), incident(0.9, 2.0));
+        let f: Rgb = m.eval(&BsdfContext::RADIANCE, &si, wi, wo, &());
+        let g: Rgb = nested.eval(&BsdfContext::RADIANCE, &si, wi, wo, &());
+        assert!((f[0] - 0.3 * g[0]).abs() < 1e-6);
+        // Sampling: the null lobe (straight through, weight 1) with
+        // probability 0.7, else the nested diffuse.
+        let mut through = 0;
+        let n = 1000;
+        for i in 0..n {
+            let u1 = (i as f32 + 0.5) / n as f32;
+            let s = m.sample::<Rgb>(&BsdfContext::RADIANCE, &si, wi, u1, glam::Vec2::new(0.3, 0.7), &()).expect("samples");
+            if s.lobe.contains(Lobe::NULL) {
+                through += 1;
+                assert_eq!(s.wo, -wi);
+                assert_eq!(s.weight, Rgb::WHITE);
+            } else {
+                assert!((s.weight[0] - 0.8).abs() < 1e-5 && s.wo.z > 0.0);
+            }
+        }
+        assert_eq!(through, 700);
+        check_sample_consistency(&m, wi, 3);
+        // A mask of opacity 1 reads the nested BSDF as its surface.
+        assert!(matches!(m.surface(), Bsdf::Diffuse(_)));
+    }
+}

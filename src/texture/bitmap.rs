@@ -187,4 +187,23 @@ mod tests {
         assert_eq!(b.eval(Vec2::new(0.75, 0.5)), Rgb::WHITE);
         assert!((b.eval(Vec2::new(0.5, 0.5))[0] - 0.5).abs() < 1e-6);
     }
+
+    #[test]
+    fn gradient_is_that_of_the_bilinear_interpolation_through_to_uv() {
+        let texels = (0..25).map(|i| {
+            let v = ((i * 7) % 11) as f32 / 10.0;
+            Rgb::new(v, 0.5 * v, 1.0 - v)
+        });
+        let to_uv = Affine2::from_cols(Vec2::new(1.5, 0.3), Vec2::new(-0.2, 2.0), Vec2::new(0.1, 0.05));
+        let b = Bitmap { width: 5, height: 5, texels: texels.collect(), filter: Filter::Bilinear, wrap: Wrap::Repeat, to_uv };
+        let lum = |uv: Vec2| super::super::luminance(b.eval(uv));
+        for uv in [Vec2::new(0.13, 0.27), Vec2::new(0.61, 0.44), Vec2::new(0.9, 0.02)] {
+            let g = b.eval_1_grad(uv);
+            let h = 1e-3;
+            let fd = Vec2::new((lum(uv + Vec2::X * h) - lum(uv - Vec2::X * h)) / (2.0 * h), (lum(uv + Vec2::Y * h) - lum(uv - Vec2::Y * h)) / (2.0 * h));
+            assert!((g - fd).length() < 2e-2 * (1.0 + fd.length()), "uv {uv}: {g} vs finite difference {fd}");
+        }
+        let nearest = Bitmap { filter: Filter::Nearest, ..b.clone() };
+        assert_eq!(nearest.eval_1_grad(Vec2::new(0.3, 0.3)), Vec2::ZERO);
+    }
 }
