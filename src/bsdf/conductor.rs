@@ -25,13 +25,16 @@
 //! ```
 
 use super::fresnel::{fresnel_conductor, reflect};
-use super::{BsdfSample, Lobe};
+use super::{BsdfContext, BsdfModel, BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
 use super::metal_spectra::MetalSpectra;
+use crate::scene::error::{Result, SceneError};
+use crate::scene::loader::PluginLoader;
+use crate::scene::props::Props;
 use crate::spectrum::mueller::{conductor_parameters, interface_from_parameters, interface_to_canonical};
 use crate::spectrum::{Rgb, Spectrum};
 use crate::texture::Texture;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub struct Conductor {
@@ -42,9 +45,46 @@ pub struct Conductor {
     pub specular_reflectance: Texture,
 }
 
+/// Reads a conductor's complex index: `eta`/`k` given directly, or a named
+/// `material` (or `none`, a perfect mirror); with a named metal, its
+/// measured spectra for the spectral modes.
+pub fn read_index(props: &Props) -> Result<(Rgb, Rgb, Option<&'static MetalSpectra>)> {
+    let node = props.node;
+    let material = props.string_opt("material")?;
+    let given = props.has("eta") || props.has("k");
+    let mut spectra = None;
+    let (eta, k) = match material {
+        Some(name) if name != "none" => {
+            let loc = node.props.iter().find(|p| p.name == "material").map_or(&node.loc, |p| &p.loc);
+            if given {
+                return Err(SceneError::at(loc, "give either \"material\" or \"eta\"/\"k\", not both"));
+            }
+            let metal = super::metals::METALS.iter().find(|m| m.name == name).ok_or_else(|| {
+                let mut names: Vec<&str> = super::metals::METALS.iter().map(|m| m.name).collect();
+                names.push("none");
+                SceneError::at(loc, format!("unknown conductor material \"{name}\"")).with_choices(&names)
+            })?;
+            spectra = super::metal_spectra::METAL_SPECTRA.iter().find(|m| m.name == name);
+            (Rgb(metal.eta), Rgb(metal.k))
+        }
+        _ => (props.color("eta", Rgb::BLACK)?, props.color("k", Rgb::WHITE)?),
+    };
+    if !(eta.is_finite() && k.is_finite() && eta.0.iter().chain(&k.0).all(|&v| v >= 0.0)) {
+        return Err(SceneError::at(&node.loc, format!("{} \"eta\" and \"k\" must be finite and not negative", node.plugin)));
+    }
+    Ok((eta, k, spectra))
+}
+
 impl Conductor {
+    /// Reads the parameters in the table above.
+    pub fn from_props(props: &Props, loader: &dyn PluginLoader) -> Result<Conductor> {
+        let specular_reflectance = loader.reflectance(props, "specular_reflectance", Rgb::WHITE)?;
+        let (eta, k, spectra) = read_index(props)?;
+        Ok(Conductor { eta, k, spectra, specular_reflectance })
+    }
+
     /// The complex index η + ik at the path's channels.
-    fn index<S: Spectrum>(&self, wl: &S::Wavelengths) -> (S, S) {
+    pub fn index<S: Spectrum>(&self, wl: &S::Wavelengths) -> (S, S) {
         match self.spectra {
             Some(m) => (S::from_function(self.eta, |l| tabulated(m.eta, l), wl), S::from_function(self.k, |l| tabulated(m.k, l), wl)),
             None => (S::from_unbounded(self.eta, wl), S::from_unbounded(self.k, wl)),
@@ -56,10 +96,30 @@ impl Conductor {
         let (eta, k) = self.index::<S>(wl);
         eta.zip_map(k, |e, k| fresnel_conductor(cos_i, e, k))
     }
+}
+
+impl BsdfModel for Conductor {
+    fn lobes(&self) -> Lobe {
+        Lobe::DELTA_REFLECTION
+    }
+
+    fn has_mueller_model(&self) -> bool {
+        true
+    }
 
     #[inline]
-    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
-        if wi.z <= 0.0 {
+    fn eval<S: Spectrum>(&self, _ctx: &BsdfContext, _si: &SurfaceInteraction, _wi: Vec3, _wo: Vec3, _wl: &S::Wavelengths) -> S {
+        S::zero()
+    }
+
+    #[inline]
+    fn pdf<S: Spectrum>(&self, _ctx: &BsdfContext, _si: &SurfaceInteraction, _wi: Vec3, _wo: Vec3, _wl: &S::Wavelengths) -> f32 {
+        0.0
+    }
+
+    #[inline]
+    fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, _u1: f32, _u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+        if wi.z <= 0.0 || !ctx.wants(Lobe::DELTA_REFLECTION) {
             return None;
         }
         let wo = reflect(wi);
@@ -114,8 +174,7 @@ fn tabulated(points: &[[f32; 2]], lambda: f32) -> f32 {
 mod tests {
     use super::*;
     use crate::bsdf::testing::*;
-    use crate::bsdf::{Bsdf, TransportMode};
-    use glam::Vec2;
+    use crate::bsdf::{Bsdf, BsdfContext};
 
     fn gold() -> Bsdf {
         Bsdf::Conductor(Conductor {
@@ -132,7 +191,7 @@ mod tests {
         let si = dummy_interaction();
         for theta in [0.0f32, 0.5, 1.0, 1.5] {
             let wi = incident(theta, 0.7);
-            let s = b.sample::<Rgb>(&si, wi, 0.3, Vec2::new(0.2, 0.9), TransportMode::Radiance, &()).expect("front side reflects");
+            let s = b.sample::<Rgb>(&BsdfContext::RADIANCE, &si, wi, 0.3, Vec2::new(0.2, 0.9), &()).expect("front side reflects");
             assert!((s.wo - Vec3::new(-wi.x, -wi.y, wi.z)).length() < 1e-6);
             assert!(s.lobe == Lobe::DELTA_REFLECTION);
             for c in 0..3 {
@@ -149,10 +208,10 @@ mod tests {
         let si = dummy_interaction();
         let wi = incident(0.4, 0.0);
         check_sample_consistency(&b, wi, 3);
-        assert!(b.eval::<Rgb>(&si, wi, Vec3::new(-wi.x, -wi.y, wi.z), &()).is_zero());
-        assert_eq!(b.pdf(&si, wi, Vec3::new(-wi.x, -wi.y, wi.z)), 0.0);
+        assert!(b.eval::<Rgb>(&BsdfContext::RADIANCE, &si, wi, Vec3::new(-wi.x, -wi.y, wi.z), &()).is_zero());
+        assert_eq!(b.pdf::<Rgb>(&BsdfContext::RADIANCE, &si, wi, Vec3::new(-wi.x, -wi.y, wi.z), &()), 0.0);
         let back = Vec3::new(wi.x, wi.y, -wi.z);
-        assert!(b.sample::<Rgb>(&si, back, 0.5, Vec2::splat(0.5), TransportMode::Radiance, &()).is_none());
+        assert!(b.sample::<Rgb>(&BsdfContext::RADIANCE, &si, back, 0.5, Vec2::splat(0.5), &()).is_none());
     }
 
     #[test]

@@ -39,12 +39,20 @@
 
 use super::dispersion::DispersiveInterface;
 use super::fresnel::{fresnel_dielectric, reflect, refract};
-use super::{BsdfSample, Lobe, TransportMode};
+use super::{BsdfContext, BsdfModel, BsdfSample, Lobe, TransportMode, choose_lobe};
 use crate::geometry::SurfaceInteraction;
-use crate::spectrum::Spectrum;
+use crate::scene::error::Result;
+use crate::scene::loader::PluginLoader;
+use crate::scene::props::Props;
 use crate::spectrum::mueller::{interface_to_canonical, specular_reflection, specular_transmission};
+use crate::spectrum::{Rgb, Spectrum};
 use crate::texture::Texture;
-use glam::Vec3;
+use glam::{Vec2, Vec3};
+
+/// Mitsuba's default interior index, `bk7`.
+pub const BK7: f32 = 1.5046;
+/// Mitsuba's default exterior index, `air`.
+pub const AIR: f32 = 1.000_277;
 
 #[derive(Clone, Debug)]
 pub struct Dielectric {
@@ -58,27 +66,79 @@ pub struct Dielectric {
 }
 
 impl Dielectric {
+    /// Reads the parameters in the table above.
+    pub fn from_props(props: &Props, loader: &dyn PluginLoader) -> Result<Dielectric> {
+        let int_ior = props.ior_spectrum("int_ior", BK7)?;
+        let ext_ior = props.ior_spectrum("ext_ior", AIR)?;
+        let specular_reflectance = loader.reflectance(props, "specular_reflectance", Rgb::WHITE)?;
+        let specular_transmittance = loader.reflectance(props, "specular_transmittance", Rgb::WHITE)?;
+        let eta = int_ior.nominal() / ext_ior.nominal();
+        let dispersive = int_ior.is_dispersive() || ext_ior.is_dispersive();
+        let dispersion = dispersive.then(|| Box::new(DispersiveInterface { int_ior, ext_ior }));
+        Ok(Dielectric { eta, dispersion, specular_reflectance, specular_transmittance })
+    }
+
+    /// int_ior / ext_ior at the path's hero wavelength (spectral modes) or
+    /// at the d line.
     #[inline]
-    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, u: f32, mode: TransportMode, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
-        let eta = match (&self.dispersion, S::hero_wavelength(wl)) {
+    pub fn eta_at<S: Spectrum>(&self, wl: &S::Wavelengths) -> f32 {
+        match (&self.dispersion, S::hero_wavelength(wl)) {
             (Some(d), Some(lambda)) => d.eta(lambda),
             _ => self.eta,
-        };
+        }
+    }
+}
+
+impl BsdfModel for Dielectric {
+    fn lobes(&self) -> Lobe {
+        Lobe::DELTA
+    }
+
+    fn has_mueller_model(&self) -> bool {
+        true
+    }
+
+    fn disperses(&self) -> bool {
+        self.dispersion.is_some()
+    }
+
+    #[inline]
+    fn eval<S: Spectrum>(&self, _ctx: &BsdfContext, _si: &SurfaceInteraction, _wi: Vec3, _wo: Vec3, _wl: &S::Wavelengths) -> S {
+        S::zero()
+    }
+
+    #[inline]
+    fn pdf<S: Spectrum>(&self, _ctx: &BsdfContext, _si: &SurfaceInteraction, _wi: Vec3, _wo: Vec3, _wl: &S::Wavelengths) -> f32 {
+        0.0
+    }
+
+    /// Reflection with probability F, refraction otherwise; a context that
+    /// wants only one of them gets that one with probability 1, weighted by
+    /// its Fresnel factor.
+    #[inline]
+    fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, u: f32, _u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+        let eta = self.eta_at::<S>(wl);
         let f = fresnel_dielectric(wi.z, eta);
-        if u < f.r {
+        let p_r = choose_lobe(ctx, Lobe::DELTA_REFLECTION, Lobe::DELTA_TRANSMISSION, f.r)?;
+        if u < p_r {
             let wo = reflect(wi);
             let scale = self.specular_reflectance.eval_spectrum::<S>(si.uv, wl);
             let weight = if S::POLARIZED {
                 // Light arrives along −wo and leaves along wi (towards the camera).
                 let m = specular_reflection(wo.z, eta);
                 let m = interface_to_canonical(m, si.frame.n, -si.to_world(wo), si.to_world(wi));
-                S::mueller(m, scale) / f.r
+                S::mueller(m, scale) / p_r
             } else {
-                scale
+                scale * (f.r / p_r)
             };
-            Some(BsdfSample { wo, weight, pdf: f.r, eta: 1.0, lobe: Lobe::DELTA_REFLECTION })
+            Some(BsdfSample { wo, weight, pdf: p_r, eta: 1.0, lobe: Lobe::DELTA_REFLECTION })
         } else {
-            let scale = match mode {
+            if f.r >= 1.0 {
+                // Total internal reflection, and the context wants no reflection.
+                return None;
+            }
+            let p_t = 1.0 - p_r;
+            let scale = match ctx.mode {
                 TransportMode::Radiance => f.eta_ti * f.eta_ti,
                 TransportMode::Importance => 1.0,
             };
@@ -89,11 +149,11 @@ impl Dielectric {
                 // that crossing, T = 1 − F for unpolarised light.
                 let m = specular_transmission(wo.z, eta);
                 let m = interface_to_canonical(m, si.frame.n, -si.to_world(wo), si.to_world(wi));
-                S::mueller(m, tint) * (scale / (1.0 - f.r))
+                S::mueller(m, tint) * (scale / p_t)
             } else {
-                tint * scale
+                tint * (scale * ((1.0 - f.r) / p_t))
             };
-            Some(BsdfSample { wo, weight, pdf: 1.0 - f.r, eta: f.eta_it, lobe: Lobe::DELTA_TRANSMISSION })
+            Some(BsdfSample { wo, weight, pdf: p_t, eta: f.eta_it, lobe: Lobe::DELTA_TRANSMISSION })
         }
     }
 }
@@ -126,7 +186,7 @@ mod tests {
             let mut reflected = 0;
             let mut rng = crate::math::Pcg32::new(9, theta.to_bits() as u64);
             for _ in 0..n {
-                let s = b.sample::<Rgb>(&si, wi, rng.next_f32(), Vec2::ZERO, TransportMode::Radiance, &()).expect("always scatters");
+                let s = b.sample::<Rgb>(&BsdfContext::RADIANCE, &si, wi, rng.next_f32(), Vec2::ZERO, &()).expect("always scatters");
                 match s.lobe {
                     Lobe::DELTA_REFLECTION => {
                         reflected += 1;
@@ -150,7 +210,7 @@ mod tests {
     fn importance_transport_is_not_scaled() {
         let b = glass(1.5);
         let si = dummy_interaction();
-        let s = b.sample::<Rgb>(&si, Vec3::Z, 0.99, Vec2::ZERO, TransportMode::Importance, &()).expect("scatters");
+        let s = b.sample::<Rgb>(&BsdfContext::IMPORTANCE, &si, Vec3::Z, 0.99, Vec2::ZERO, &()).expect("scatters");
         assert_eq!(s.lobe, Lobe::DELTA_TRANSMISSION);
         assert!((s.weight[0] - 1.0).abs() < 1e-6);
     }
@@ -162,12 +222,12 @@ mod tests {
         // 60° inside glass is past the critical angle 41.8°: every sample reflects.
         let wi = Vec3::new((60f32).to_radians().sin(), 0.0, -(60f32).to_radians().cos());
         for u in [0.0f32, 0.5, 0.999_999] {
-            let s = b.sample::<Rgb>(&si, wi, u, Vec2::ZERO, TransportMode::Radiance, &()).expect("scatters");
+            let s = b.sample::<Rgb>(&BsdfContext::RADIANCE, &si, wi, u, Vec2::ZERO, &()).expect("scatters");
             assert_eq!(s.lobe, Lobe::DELTA_REFLECTION);
             assert!(s.wo.z < 0.0 && (s.weight[0] - 1.0).abs() < 1e-6);
         }
         // Leaving the glass at normal incidence multiplies radiance by 1.5².
-        let s = b.sample::<Rgb>(&si, -Vec3::Z, 0.99, Vec2::ZERO, TransportMode::Radiance, &()).expect("scatters");
+        let s = b.sample::<Rgb>(&BsdfContext::RADIANCE, &si, -Vec3::Z, 0.99, Vec2::ZERO, &()).expect("scatters");
         assert!((s.weight[0] - 2.25).abs() < 1e-5 && (s.eta - 1.0 / 1.5).abs() < 1e-6);
     }
 
@@ -179,8 +239,8 @@ mod tests {
         let wi = incident(0.5, 0.1);
         let f = fresnel_dielectric(wi.z, 1.33);
         for wo in [reflect(wi), refract(wi, f.cos_t, f.eta_ti)] {
-            assert!(b.eval::<Rgb>(&si, wi, wo, &()).is_zero());
-            assert_eq!(b.pdf(&si, wi, wo), 0.0);
+            assert!(b.eval::<Rgb>(&BsdfContext::RADIANCE, &si, wi, wo, &()).is_zero());
+            assert_eq!(b.pdf::<Rgb>(&BsdfContext::RADIANCE, &si, wi, wo, &()), 0.0);
         }
     }
 }

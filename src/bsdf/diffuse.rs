@@ -19,11 +19,14 @@
 //! </bsdf>
 //! ```
 
-use super::{BsdfSample, Lobe};
+use super::{BsdfContext, BsdfModel, BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
 use crate::math::INV_PI;
 use crate::math::sampling::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
-use crate::spectrum::Spectrum;
+use crate::scene::error::Result;
+use crate::scene::loader::PluginLoader;
+use crate::scene::props::Props;
+use crate::spectrum::{Rgb, Spectrum};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
 
@@ -33,22 +36,37 @@ pub struct Diffuse {
 }
 
 impl Diffuse {
+    /// Reads the parameters in the table above.
+    pub fn from_props(props: &Props, loader: &dyn PluginLoader) -> Result<Diffuse> {
+        Ok(Diffuse { reflectance: loader.reflectance(props, "reflectance", Rgb::new(0.5, 0.5, 0.5))? })
+    }
+}
+
+impl BsdfModel for Diffuse {
+    fn lobes(&self) -> Lobe {
+        Lobe::DIFFUSE_REFLECTION
+    }
+
+    fn has_mueller_model(&self) -> bool {
+        true
+    }
+
     #[inline]
-    pub fn eval<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
-        if wi.z <= 0.0 || wo.z <= 0.0 {
+    fn eval<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
+        if wi.z <= 0.0 || wo.z <= 0.0 || !ctx.wants(Lobe::DIFFUSE_REFLECTION) {
             return S::zero();
         }
         self.reflectance.eval_spectrum::<S>(si, wl).depolarize() * (INV_PI * wo.z)
     }
 
     #[inline]
-    pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
-        if wi.z <= 0.0 { 0.0 } else { cosine_hemisphere_pdf(wo) }
+    fn pdf<S: Spectrum>(&self, ctx: &BsdfContext, _si: &SurfaceInteraction, wi: Vec3, wo: Vec3, _wl: &S::Wavelengths) -> f32 {
+        if wi.z <= 0.0 || !ctx.wants(Lobe::DIFFUSE_REFLECTION) { 0.0 } else { cosine_hemisphere_pdf(wo) }
     }
 
     #[inline]
-    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, u: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
-        if wi.z <= 0.0 {
+    fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, _u1: f32, u: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+        if wi.z <= 0.0 || !ctx.wants(Lobe::DIFFUSE_REFLECTION) {
             return None;
         }
         let wo = square_to_cosine_hemisphere(u);
@@ -105,7 +123,7 @@ mod tests {
         let b = lambert(0.5);
         let si = dummy_interaction();
         let wi = Vec3::new(0.0, 0.0, -1.0);
-        assert!(b.eval::<Rgb>(&si, wi, Vec3::Z, &()).is_zero());
-        assert!(b.sample::<Rgb>(&si, wi, 0.5, Vec2::splat(0.5), crate::bsdf::TransportMode::Radiance, &()).is_none());
+        assert!(b.eval::<Rgb>(&BsdfContext::RADIANCE, &si, wi, Vec3::Z, &()).is_zero());
+        assert!(b.sample::<Rgb>(&BsdfContext::RADIANCE, &si, wi, 0.5, Vec2::splat(0.5), &()).is_none());
     }
 }

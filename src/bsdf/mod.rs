@@ -1,20 +1,37 @@
 //! BSDFs: how a surface scatters light.
 //!
 //! # The contract
+//! Every BSDF model is a struct in its own file implementing [`BsdfModel`]:
+//! the same methods with the same signatures for all of them, dispatched
+//! statically through the [`Bsdf`] enum (one `match`, no virtual calls).
 //! Everything happens in the local shading frame (z = shading normal):
 //! `wi` points from the surface towards where the path came from (the camera
-//! side), `wo` towards where it goes next (the light side).
+//! side for radiance, the light side for importance), `wo` towards where it
+//! goes next.
 //!
-//! * [`Bsdf::eval`] returns f(wi, wo) · |cos θ_o| — the BSDF **times the
-//!   cosine foreshortening** of `wo` (Mitsuba's convention), so integrators
-//!   never multiply by a cosine themselves.
-//! * [`Bsdf::pdf`] is the solid-angle density with which `sample` picks `wo`.
-//! * [`Bsdf::sample`] returns `wo` with weight = eval / pdf, the pdf, the
-//!   relative IOR crossed and the lobe sampled.
+//! * Every call takes a [`BsdfContext`] — the [`TransportMode`] (radiance on
+//!   camera paths, importance on light paths; non-symmetric BSDFs such as
+//!   refraction scale differently in each) and the [`Lobe`]s wanted (a BSDF
+//!   leaves out lobes the context does not ask for) — and the path's
+//!   wavelengths `wl` (`()` in RGB mode).
+//! * [`BsdfModel::eval`] returns f(wi, wo) · |cos θ_o| — the BSDF **times
+//!   the cosine foreshortening** of `wo` (Mitsuba's convention), so
+//!   integrators never multiply by a cosine themselves.
+//! * [`BsdfModel::pdf`] is the solid-angle density with which `sample` picks
+//!   `wo` (given the same context).
+//! * [`BsdfModel::sample`] takes `u1` (picks a lobe) and `u2` (samples the
+//!   direction within it) and returns a [`BsdfSample`]: `wo`, weight =
+//!   eval / pdf, the pdf, the relative IOR crossed and the lobe sampled; or
+//!   `None` if nothing scatters.
 //! * `eval` and `pdf` are zero on delta lobes (specular reflection or
 //!   refraction); only `sample` produces them, flagged [`Lobe::DELTA`], and
 //!   integrators handle those samples explicitly (no emitter sampling, no MIS).
+//! * Each model reads its own parameters in `from_props`, beside the
+//!   parameter table in its file's doc; `scene/loader.rs` only maps plugin
+//!   names to models.
 
+pub mod blendbsdf;
+pub mod bumpmap;
 pub mod conductor;
 pub mod dielectric;
 pub mod diffuse;
@@ -22,14 +39,22 @@ pub mod dispersion;
 pub mod fresnel;
 pub mod ior;
 pub mod metal_spectra;
+pub mod mask;
 pub mod metals;
+pub mod normalmap;
+pub mod null;
 pub mod plastic;
 pub mod polarizer;
 pub mod retarder;
 pub mod thindielectric;
 pub mod twosided;
 
+pub use blendbsdf::BlendBsdf;
+pub use bumpmap::BumpMap;
 pub use conductor::Conductor;
+pub use mask::Mask;
+pub use normalmap::NormalMap;
+pub use null::Null;
 pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use plastic::Plastic;
@@ -53,6 +78,9 @@ bitflags! {
         const GLOSSY_TRANSMISSION = 1 << 3;
         const DELTA_REFLECTION = 1 << 4;
         const DELTA_TRANSMISSION = 1 << 5;
+        /// Straight pass-through (Mitsuba's `Null`): the surface is not
+        /// there for this fraction of rays (`mask`, `null`).
+        const NULL = 1 << 6;
         const DIFFUSE = Self::DIFFUSE_REFLECTION.bits() | Self::DIFFUSE_TRANSMISSION.bits();
         const GLOSSY = Self::GLOSSY_REFLECTION.bits() | Self::GLOSSY_TRANSMISSION.bits();
         const DELTA = Self::DELTA_REFLECTION.bits() | Self::DELTA_TRANSMISSION.bits();
@@ -81,6 +109,101 @@ pub struct BsdfSample<S> {
     pub lobe: Lobe,
 }
 
+/// What a BSDF query is for: the transport mode and the lobes wanted
+/// (Mitsuba's `BSDFContext`). The default is radiance transport with every
+/// lobe.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BsdfContext {
+    pub mode: TransportMode,
+    /// The lobes to evaluate, give a density to, or sample; others are left out.
+    pub lobes: Lobe,
+}
+
+impl Default for BsdfContext {
+    fn default() -> Self {
+        BsdfContext::RADIANCE
+    }
+}
+
+impl BsdfContext {
+    /// Camera paths, every lobe.
+    pub const RADIANCE: BsdfContext = BsdfContext { mode: TransportMode::Radiance, lobes: Lobe::all() };
+    /// Light paths, every lobe.
+    pub const IMPORTANCE: BsdfContext = BsdfContext { mode: TransportMode::Importance, lobes: Lobe::all() };
+
+    pub const fn new(mode: TransportMode) -> BsdfContext {
+        BsdfContext { mode, lobes: Lobe::all() }
+    }
+
+    /// The same context restricted to `lobes`.
+    pub const fn with_lobes(self, lobes: Lobe) -> BsdfContext {
+        BsdfContext { mode: self.mode, lobes }
+    }
+
+    /// Whether any of `lobe` is wanted.
+    #[inline]
+    pub fn wants(&self, lobe: Lobe) -> bool {
+        self.lobes.intersects(lobe)
+    }
+}
+
+/// The probability of picking the first of two lobes: `p` (the model's
+/// own choice) when the context wants both, 1 or 0 when it wants only one,
+/// `None` when it wants neither.
+#[inline]
+pub(crate) fn choose_lobe(ctx: &BsdfContext, first: Lobe, second: Lobe, p: f32) -> Option<f32> {
+    match (ctx.wants(first), ctx.wants(second)) {
+        (true, true) => Some(p),
+        (true, false) => Some(1.0),
+        (false, true) => Some(0.0),
+        (false, false) => None,
+    }
+}
+
+/// The contract every BSDF model implements (see the module doc). The
+/// methods are generic over the spectral representation `S` (RGB,
+/// spectral, polarized), so a model is written once for every mode.
+pub trait BsdfModel {
+    /// Every lobe this model can scatter into.
+    fn lobes(&self) -> Lobe;
+
+    /// f(wi, wo) · |cos θ_o| over the smooth lobes `ctx` wants.
+    fn eval<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S;
+
+    /// The density (solid angle) with which `sample` picks `wo` under `ctx`.
+    fn pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> f32;
+
+    /// A direction `wo` with weight eval / pdf (or the delta lobe's weight);
+    /// `u1` picks a lobe, `u2` the direction within it.
+    fn sample<S: Spectrum>(
+        &self,
+        ctx: &BsdfContext,
+        si: &SurfaceInteraction,
+        wi: Vec3,
+        u1: f32,
+        u2: Vec2,
+        wl: &S::Wavelengths,
+    ) -> Option<BsdfSample<S>>;
+
+    /// Whether the polarized modes model this BSDF's effect on polarisation.
+    /// No default: each model must say, and the polarized modes refuse
+    /// scenes with a BSDF that answers false.
+    fn has_mueller_model(&self) -> bool;
+
+    /// Whether the BSDF is oriented within the surface (a polarizer's or a
+    /// wave plate's axis, an anisotropic roughness), measured from ∂p/∂u as
+    /// in Mitsuba: its shapes then build their shading frames from ∂p/∂u
+    /// instead of the normal alone.
+    fn needs_tangent_frame(&self) -> bool {
+        false
+    }
+
+    /// Whether the directions this BSDF samples depend on the wavelength.
+    fn disperses(&self) -> bool {
+        false
+    }
+}
+
 #[derive(Clone, Debug)]
 pub enum Bsdf {
     Diffuse(Diffuse),
@@ -91,49 +214,35 @@ pub enum Bsdf {
     Polarizer(Polarizer),
     Retarder(Retarder),
     TwoSided(TwoSided),
+    Null(Null),
+    Mask(Mask),
+    BlendBsdf(BlendBsdf),
+    NormalMap(NormalMap),
+    BumpMap(BumpMap),
+}
+
+/// Static dispatch: `$b` is bound to the model inside each arm.
+macro_rules! dispatch {
+    ($self:expr, $b:ident => $e:expr) => {
+        match $self {
+            Bsdf::Diffuse($b) => $e,
+            Bsdf::Conductor($b) => $e,
+            Bsdf::Dielectric($b) => $e,
+            Bsdf::ThinDielectric($b) => $e,
+            Bsdf::Plastic($b) => $e,
+            Bsdf::Polarizer($b) => $e,
+            Bsdf::Retarder($b) => $e,
+            Bsdf::TwoSided($b) => $e,
+            Bsdf::Null($b) => $e,
+            Bsdf::Mask($b) => $e,
+            Bsdf::BlendBsdf($b) => $e,
+            Bsdf::NormalMap($b) => $e,
+            Bsdf::BumpMap($b) => $e,
+        }
+    };
 }
 
 impl Bsdf {
-    #[inline]
-    pub fn lobes(&self) -> Lobe {
-        match self {
-            Bsdf::Diffuse(_) => Lobe::DIFFUSE_REFLECTION,
-            Bsdf::Conductor(_) => Lobe::DELTA_REFLECTION,
-            Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) => Lobe::DELTA,
-            Bsdf::Polarizer(_) | Bsdf::Retarder(_) => Lobe::DELTA_TRANSMISSION,
-            Bsdf::Plastic(_) => Lobe::DELTA_REFLECTION | Lobe::DIFFUSE_REFLECTION,
-            Bsdf::TwoSided(t) => t.lobes(),
-        }
-    }
-
-    /// Whether the polarized modes model this BSDF's effect on polarisation
-    /// (diffuse surfaces depolarise, polarizers and retarders polarise and
-    /// retard, smooth dielectrics and conductors reflect and refract by the
-    /// Fresnel equations in Mueller form, thin dielectrics by the same summed
-    /// over the slab's internal bounces, plastic's coating reflects by them
-    /// over a depolarising base). Every BSDF has one now; the match is
-    /// exhaustive so that a new BSDF must say whether it has one, and the
-    /// polarized modes refuse scenes with a BSDF that answers false.
-    pub fn has_mueller_model(&self) -> bool {
-        match self {
-            Bsdf::Diffuse(_) | Bsdf::Polarizer(_) | Bsdf::Retarder(_) => true,
-            Bsdf::Dielectric(_) | Bsdf::Conductor(_) => true,
-            Bsdf::ThinDielectric(_) | Bsdf::Plastic(_) => true,
-            Bsdf::TwoSided(t) => t.has_mueller_model(),
-        }
-    }
-
-    /// Whether the BSDF is oriented within the surface (a polarizer's or a
-    /// wave plate's axis), measured from ∂p/∂u as in Mitsuba: its shapes
-    /// then build their shading frames from ∂p/∂u instead of the normal alone.
-    pub fn needs_tangent_frame(&self) -> bool {
-        match self {
-            Bsdf::Polarizer(_) | Bsdf::Retarder(_) => true,
-            Bsdf::TwoSided(t) => t.front.needs_tangent_frame() || t.back.needs_tangent_frame(),
-            _ => false,
-        }
-    }
-
     /// The plugin name, for messages.
     pub fn plugin(&self) -> &'static str {
         match self {
@@ -145,59 +254,141 @@ impl Bsdf {
             Bsdf::Polarizer(_) => "polarizer",
             Bsdf::Retarder(_) => "retarder",
             Bsdf::TwoSided(_) => "twosided",
+            Bsdf::Null(_) => "null",
+            Bsdf::Mask(_) => "mask",
+            Bsdf::BlendBsdf(_) => "blendbsdf",
+            Bsdf::NormalMap(_) => "normalmap",
+            Bsdf::BumpMap(_) => "bumpmap",
         }
     }
 
-    /// Whether the directions this BSDF samples depend on the wavelength.
+    /// The fraction of rays that meet the surface at `si` (1 − the
+    /// pass-through of the null lobe): `mask`'s opacity, 0 for `null`, 1
+    /// for every BSDF without a null lobe.
+    #[inline]
+    pub fn opacity(&self, si: &SurfaceInteraction) -> f32 {
+        match self {
+            Bsdf::Null(_) => 0.0,
+            Bsdf::Mask(m) => m.opacity(si),
+            _ => 1.0,
+        }
+    }
+
+    /// Whether rays pass through part of the surface: a `mask` or `null`
+    /// as the shape's BSDF (the scene then lets rays through, see
+    /// [`crate::geometry::Shape::pass_through`]).
+    #[inline]
+    pub fn passes_through(&self) -> bool {
+        matches!(self, Bsdf::Null(_) | Bsdf::Mask(_))
+    }
+
+    /// The BSDF of the part of the surface that is there: `mask`'s nested
+    /// BSDF (the integrators have already chosen, with probability
+    /// [`Bsdf::opacity`], that the ray meets it), else the BSDF itself.
+    #[inline]
+    pub fn surface(&self) -> &Bsdf {
+        match self {
+            Bsdf::Mask(m) => &m.nested,
+            b => b,
+        }
+    }
+
+    /// See [`BsdfModel::lobes`].
+    #[inline]
+    pub fn lobes(&self) -> Lobe {
+        dispatch!(self, b => b.lobes())
+    }
+
+    /// See [`BsdfModel::has_mueller_model`].
+    pub fn has_mueller_model(&self) -> bool {
+        dispatch!(self, b => b.has_mueller_model())
+    }
+
+    /// See [`BsdfModel::needs_tangent_frame`].
+    pub fn needs_tangent_frame(&self) -> bool {
+        dispatch!(self, b => b.needs_tangent_frame())
+    }
+
+    /// See [`BsdfModel::disperses`].
     #[inline]
     pub fn disperses(&self) -> bool {
-        matches!(self, Bsdf::Dielectric(d) if d.dispersion.is_some())
+        dispatch!(self, b => b.disperses())
     }
 
+    /// See [`BsdfModel::eval`].
     #[inline]
-    pub fn eval<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
-        match self {
-            Bsdf::Diffuse(d) => d.eval(si, wi, wo, wl),
-            Bsdf::Plastic(p) => p.eval(si, wi, wo, wl),
-            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::Polarizer(_) | Bsdf::Retarder(_) => S::zero(),
-            Bsdf::TwoSided(t) => t.eval(si, wi, wo, wl),
-        }
+    pub fn eval<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
+        dispatch!(self, b => b.eval::<S>(ctx, si, wi, wo, wl))
     }
 
+    /// See [`BsdfModel::pdf`].
     #[inline]
-    pub fn pdf(&self, si: &SurfaceInteraction, wi: Vec3, wo: Vec3) -> f32 {
-        match self {
-            Bsdf::Diffuse(d) => d.pdf(wi, wo),
-            Bsdf::Plastic(p) => p.pdf(wi, wo),
-            Bsdf::Conductor(_) | Bsdf::Dielectric(_) | Bsdf::ThinDielectric(_) | Bsdf::Polarizer(_) | Bsdf::Retarder(_) => 0.0,
-            Bsdf::TwoSided(t) => t.pdf(si, wi, wo),
-        }
+    pub fn pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> f32 {
+        dispatch!(self, b => b.pdf::<S>(ctx, si, wi, wo, wl))
     }
 
-    /// `u1` picks a lobe, `u2` samples the direction within it; `mode` says
-    /// whether the path carries radiance (camera paths) or importance.
+    /// See [`BsdfModel::sample`].
     #[inline]
     pub fn sample<S: Spectrum>(
         &self,
+        ctx: &BsdfContext,
         si: &SurfaceInteraction,
         wi: Vec3,
         u1: f32,
         u2: Vec2,
-        mode: TransportMode,
         wl: &S::Wavelengths,
     ) -> Option<BsdfSample<S>> {
-        match self {
-            Bsdf::Diffuse(d) => d.sample(si, wi, u2, wl),
-            Bsdf::Conductor(c) => c.sample(si, wi, wl),
-            Bsdf::Dielectric(d) => d.sample(si, wi, u1, mode, wl),
-            Bsdf::ThinDielectric(d) => d.sample(si, wi, u1, wl),
-            Bsdf::Plastic(p) => p.sample(si, wi, u1, u2, wl),
-            Bsdf::Polarizer(p) => p.sample(si, wi, wl),
-            Bsdf::Retarder(r) => r.sample(si, wi, wl),
-            Bsdf::TwoSided(t) => t.sample(si, wi, u1, u2, mode, wl),
-        }
+        dispatch!(self, b => b.sample::<S>(ctx, si, wi, u1, u2, wl))
     }
 }
 
 #[cfg(test)]
 pub(crate) mod testing;
+
+#[cfg(test)]
+mod contract_tests {
+    use super::testing::{check_sample_consistency_ctx, dummy_interaction, incident};
+    use super::*;
+    use crate::bsdf::fresnel::fresnel_dielectric;
+    use crate::spectrum::Rgb;
+    use crate::texture::Texture;
+
+    fn glass() -> Bsdf {
+        Bsdf::Dielectric(Dielectric {
+            eta: 1.5,
+            dispersion: None,
+            specular_reflectance: Texture::constant(Rgb::WHITE),
+            specular_transmittance: Texture::constant(Rgb::WHITE),
+        })
+    }
+
+    #[test]
+    fn a_context_restricted_to_one_lobe_samples_only_that_lobe() {
+        let si = dummy_interaction();
+        let wi = incident(0.6, 0.3);
+        let f = fresnel_dielectric(wi.z, 1.5).r;
+        let refl = BsdfContext::RADIANCE.with_lobes(Lobe::DELTA_REFLECTION);
+        let trans = BsdfContext::IMPORTANCE.with_lobes(Lobe::DELTA_TRANSMISSION);
+        for u in [0.0f32, 0.5, 0.99] {
+            let s = glass().sample::<Rgb>(&refl, &si, wi, u, Vec2::ZERO, &()).expect("reflects");
+            assert_eq!((s.lobe, s.pdf), (Lobe::DELTA_REFLECTION, 1.0));
+            assert!((s.weight[0] - f).abs() < 1e-6);
+            let s = glass().sample::<Rgb>(&trans, &si, wi, u, Vec2::ZERO, &()).expect("refracts");
+            assert_eq!((s.lobe, s.pdf), (Lobe::DELTA_TRANSMISSION, 1.0));
+            assert!((s.weight[0] - (1.0 - f)).abs() < 1e-6);
+        }
+        // Plastic: only the diffuse lobe, sampled with all of the probability.
+        let p = Bsdf::Plastic(Plastic::new(Texture::constant(Rgb::new(0.5, 0.4, 0.3)), None, 1.5, false));
+        let diffuse = BsdfContext::RADIANCE.with_lobes(Lobe::DIFFUSE_REFLECTION);
+        check_sample_consistency_ctx(&p, &diffuse, wi, 7);
+        let all = BsdfContext::RADIANCE;
+        let wo = incident(0.3, 2.0);
+        let (p_all, p_diffuse) = (p.pdf::<Rgb>(&all, &si, wi, wo, &()), p.pdf::<Rgb>(&diffuse, &si, wi, wo, &()));
+        assert!(p_diffuse > p_all && (p_diffuse - wo.z / std::f32::consts::PI).abs() < 1e-6);
+        // No lobe wanted: nothing is evaluated or sampled.
+        let none = BsdfContext::RADIANCE.with_lobes(Lobe::empty());
+        assert!(p.eval::<Rgb>(&none, &si, wi, wo, &()).is_zero() && p.pdf::<Rgb>(&none, &si, wi, wo, &()) == 0.0);
+        assert!(p.sample::<Rgb>(&none, &si, wi, 0.5, Vec2::splat(0.5), &()).is_none());
+        assert!(glass().sample::<Rgb>(&none, &si, wi, 0.5, Vec2::splat(0.5), &()).is_none());
+    }
+}

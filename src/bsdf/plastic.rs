@@ -47,10 +47,14 @@
 //! ```
 
 use super::fresnel::{fresnel_dielectric, fresnel_diffuse_reflectance, reflect};
-use super::{BsdfSample, Lobe};
+use super::dielectric::AIR;
+use super::{BsdfContext, BsdfModel, BsdfSample, Lobe, choose_lobe};
 use crate::geometry::SurfaceInteraction;
 use crate::math::sampling::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
-use crate::spectrum::Spectrum;
+use crate::scene::error::Result;
+use crate::scene::loader::PluginLoader;
+use crate::scene::props::Props;
+use crate::spectrum::{Rgb, Spectrum};
 use crate::spectrum::mueller::{interface_to_canonical, specular_reflection};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
@@ -67,7 +71,24 @@ pub struct Plastic {
     specular_sampling_weight: f32,
 }
 
+/// Mitsuba's default coating index, `polypropylene`.
+pub const POLYPROPYLENE: f32 = 1.49;
+
 impl Plastic {
+    /// Reads the parameters in the table above.
+    pub fn from_props(props: &Props, loader: &dyn PluginLoader) -> Result<Plastic> {
+        let int_ior = props.ior("int_ior", POLYPROPYLENE)?;
+        let ext_ior = props.ior("ext_ior", AIR)?;
+        let diffuse = loader.reflectance(props, "diffuse_reflectance", Rgb::new(0.5, 0.5, 0.5))?;
+        let specular = if props.has("specular_reflectance") || props.has_child("specular_reflectance") {
+            Some(loader.reflectance(props, "specular_reflectance", Rgb::WHITE)?)
+        } else {
+            None
+        };
+        let nonlinear = props.bool("nonlinear", false)?;
+        Ok(Plastic::new(diffuse, specular, int_ior / ext_ior, nonlinear))
+    }
+
     pub fn new(diffuse_reflectance: Texture, specular_reflectance: Option<Texture>, eta: f32, nonlinear: bool) -> Plastic {
         let d_mean = diffuse_reflectance.mean();
         let s_mean = specular_reflectance.as_ref().map_or(1.0, |t| t.mean());
@@ -104,9 +125,20 @@ impl Plastic {
         rho.depolarize() * (self.inv_eta2 * (1.0 - f_i) * (1.0 - f_o))
     }
 
+}
+
+impl BsdfModel for Plastic {
+    fn lobes(&self) -> Lobe {
+        Lobe::DELTA_REFLECTION | Lobe::DIFFUSE_REFLECTION
+    }
+
+    fn has_mueller_model(&self) -> bool {
+        true
+    }
+
     #[inline]
-    pub fn eval<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
-        if wi.z <= 0.0 || wo.z <= 0.0 {
+    fn eval<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
+        if wi.z <= 0.0 || wo.z <= 0.0 || !ctx.wants(Lobe::DIFFUSE_REFLECTION) {
             return S::zero();
         }
         let f_i = fresnel_dielectric(wi.z, self.eta).r;
@@ -115,21 +147,22 @@ impl Plastic {
     }
 
     #[inline]
-    pub fn pdf(&self, wi: Vec3, wo: Vec3) -> f32 {
-        if wi.z <= 0.0 || wo.z <= 0.0 {
+    fn pdf<S: Spectrum>(&self, ctx: &BsdfContext, _si: &SurfaceInteraction, wi: Vec3, wo: Vec3, _wl: &S::Wavelengths) -> f32 {
+        if wi.z <= 0.0 || wo.z <= 0.0 || !ctx.wants(Lobe::DIFFUSE_REFLECTION) {
             return 0.0;
         }
         let f_i = fresnel_dielectric(wi.z, self.eta).r;
-        (1.0 - self.prob_specular(f_i)) * cosine_hemisphere_pdf(wo)
+        let p_s = if ctx.wants(Lobe::DELTA_REFLECTION) { self.prob_specular(f_i) } else { 0.0 };
+        (1.0 - p_s) * cosine_hemisphere_pdf(wo)
     }
 
     #[inline]
-    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+    fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
         if wi.z <= 0.0 {
             return None;
         }
         let f_i = fresnel_dielectric(wi.z, self.eta).r;
-        let p_s = self.prob_specular(f_i);
+        let p_s = choose_lobe(ctx, Lobe::DELTA_REFLECTION, Lobe::DIFFUSE_REFLECTION, self.prob_specular(f_i))?;
         if u1 < p_s {
             let scale: S = self.specular_reflectance.as_ref().map_or(S::splat(1.0), |t| t.eval_spectrum(si.uv, wl));
             let wo = reflect(wi);
@@ -171,7 +204,7 @@ mod tests {
     use super::*;
     use crate::bsdf::testing::*;
     use crate::spectrum::Rgb;
-    use crate::bsdf::{Bsdf, TransportMode};
+    use crate::bsdf::{Bsdf, BsdfContext};
     use crate::math::Pcg32;
     use crate::spectrum::Polarized;
     use crate::spectrum::mueller::degree_of_polarization;
@@ -207,8 +240,8 @@ mod tests {
         for _ in 0..4000 {
             let wi = square_to_cosine_hemisphere(Vec2::new(rng.next_f32(), rng.next_f32()));
             let (u1, u2) = (rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()));
-            let a = p.sample::<Rgb>(&si, wi, u1, u2, &());
-            let b = p.sample::<Polarized<Rgb>>(&si, wi, u1, u2, &());
+            let a = p.sample::<Rgb>(&BsdfContext::RADIANCE, &si, wi, u1, u2, &());
+            let b = p.sample::<Polarized<Rgb>>(&BsdfContext::RADIANCE, &si, wi, u1, u2, &());
             let (Some(a), Some(b)) = (a, b) else {
                 assert!(a.is_none() && b.is_none());
                 continue;
@@ -228,7 +261,7 @@ mod tests {
             }
             // Next-event estimation's side: eval of a random direction.
             let wo = square_to_cosine_hemisphere(Vec2::new(rng.next_f32(), rng.next_f32()));
-            let (fa, fb): (Rgb, Polarized<Rgb>) = (p.eval(&si, wi, wo, &()), p.eval(&si, wi, wo, &()));
+            let (fa, fb): (Rgb, Polarized<Rgb>) = (p.eval(&BsdfContext::RADIANCE, &si, wi, wo, &()), p.eval(&BsdfContext::RADIANCE, &si, wi, wo, &()));
             for c in 0..3 {
                 worst = worst.max((fb.0[0][0][c] - fa[c]).abs());
             }
@@ -245,19 +278,19 @@ mod tests {
         let brewster = p.eta.atan();
         for phi in [0.0f32, 1.3, 3.0, 5.0] {
             let wi = incident(brewster, phi);
-            let s = p.sample::<Polarized<Rgb>>(&si, wi, 0.0, Vec2::splat(0.5), &()).expect("front side");
+            let s = p.sample::<Polarized<Rgb>>(&BsdfContext::RADIANCE, &si, wi, 0.0, Vec2::splat(0.5), &()).expect("front side");
             assert_eq!(s.lobe, Lobe::DELTA_REFLECTION);
             let dop = degree_of_polarization(stokes(&s.weight));
             eprintln!("φ {phi}: DoP of the specular reflection {dop:.6}");
             assert!((dop - 1.0).abs() < 1e-4, "φ {phi}: {dop}");
             // The diffuse lobe at the same angle: unpolarised whatever comes in.
-            let s = p.sample::<Polarized<Rgb>>(&si, wi, 0.999_999, Vec2::new(0.3, 0.6), &()).expect("front side");
+            let s = p.sample::<Polarized<Rgb>>(&BsdfContext::RADIANCE, &si, wi, 0.999_999, Vec2::new(0.3, 0.6), &()).expect("front side");
             assert_eq!(s.lobe, Lobe::DIFFUSE_REFLECTION);
             assert!(is_depolarizer(&s.weight), "{:?}", s.weight);
-            assert!(is_depolarizer(&p.eval::<Polarized<Rgb>>(&si, wi, s.wo, &())));
+            assert!(is_depolarizer(&p.eval::<Polarized<Rgb>>(&BsdfContext::RADIANCE, &si, wi, s.wo, &())));
         }
         // Off Brewster's angle the coating only partly polarises.
-        let s = p.sample::<Polarized<Rgb>>(&si, incident(0.5, 0.0), 0.0, Vec2::splat(0.5), &()).expect("front side");
+        let s = p.sample::<Polarized<Rgb>>(&BsdfContext::RADIANCE, &si, incident(0.5, 0.0), 0.0, Vec2::splat(0.5), &()).expect("front side");
         assert_eq!(s.lobe, Lobe::DELTA_REFLECTION);
         assert!(degree_of_polarization(stokes(&s.weight)) < 0.95);
     }
@@ -283,9 +316,9 @@ mod tests {
         // The mirror direction has no special value in eval/pdf: the delta lobe is excluded.
         let mirror = reflect(wi);
         let near = incident(0.7 + 1e-3, std::f32::consts::PI);
-        let (a, c): (Rgb, Rgb) = (b.eval(&si, wi, mirror, &()), b.eval(&si, wi, near, &()));
+        let (a, c): (Rgb, Rgb) = (b.eval(&BsdfContext::RADIANCE, &si, wi, mirror, &()), b.eval(&BsdfContext::RADIANCE, &si, wi, near, &()));
         assert!((a[0] - c[0]).abs() < 1e-3 * c[0]);
-        assert!(b.eval::<Rgb>(&si, Vec3::new(wi.x, wi.y, -wi.z), Vec3::Z, &()).is_zero(), "one-sided");
+        assert!(b.eval::<Rgb>(&BsdfContext::RADIANCE, &si, Vec3::new(wi.x, wi.y, -wi.z), Vec3::Z, &()).is_zero(), "one-sided");
     }
 
     #[test]
@@ -304,7 +337,7 @@ mod tests {
                 let n = 400_000;
                 let mut sum = 0.0f64;
                 for _ in 0..n {
-                    if let Some(s) = b.sample::<Rgb>(&si, wi, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()), TransportMode::Radiance, &()) {
+                    if let Some(s) = b.sample::<Rgb>(&BsdfContext::RADIANCE, &si, wi, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()), &()) {
                         sum += s.weight[0] as f64;
                     }
                 }

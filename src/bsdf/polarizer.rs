@@ -2,7 +2,7 @@
 //!
 //! | parameter | type | default | meaning |
 //! |---|---|---|---|
-//! | `theta` | float | 0 | angle (degrees) of the transmission axis from the surface's ∂p/∂u, clockwise about its normal |
+//! | `theta` | float or constant spectrum | 0 | angle (degrees) of the transmission axis from the surface's ∂p/∂u, clockwise about its normal (Mitsuba's tutorials write `<spectrum name="theta" value="45"/>`) |
 //! | `transmittance` | rgb / spectrum / float | 1 | scale on what passes |
 //! | `polarizing` | boolean | true | false: a neutral filter of the same transmittance |
 //!
@@ -27,12 +27,15 @@
 //! </shape>
 //! ```
 
-use super::{BsdfSample, Lobe};
+use super::{BsdfContext, BsdfModel, BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
+use crate::scene::error::Result;
+use crate::scene::loader::PluginLoader;
+use crate::scene::props::Props;
 use crate::spectrum::mueller::{linear_polarizer, sheet_to_canonical};
-use crate::spectrum::Spectrum;
+use crate::spectrum::{Rgb, Spectrum};
 use crate::texture::Texture;
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub struct Polarizer {
@@ -43,8 +46,55 @@ pub struct Polarizer {
 }
 
 impl Polarizer {
+    /// Reads the parameters in the table above.
+    pub fn from_props(props: &Props, loader: &dyn PluginLoader) -> Result<Polarizer> {
+        Ok(Polarizer {
+            theta: angle_degrees(props, "theta", 0.0)?.to_radians(),
+            transmittance: loader.reflectance(props, "transmittance", Rgb::WHITE)?,
+            polarizing: props.bool("polarizing", true)?,
+        })
+    }
+}
+
+/// An angle in degrees given as a `float`/`integer` or, as Mitsuba (which
+/// reads it as a texture) also accepts, a constant `<spectrum>` or a grey
+/// `<rgb>`.
+pub(crate) fn angle_degrees(props: &Props, name: &str, default: f32) -> Result<f32> {
+    let Some(c) = props.color_opt(name)? else { return Ok(default) };
+    if c[0] != c[1] || c[1] != c[2] || !c[0].is_finite() {
+        return Err(props.error_at(name, format!("\"{name}\" must be one angle in degrees (a float, or a constant spectrum such as value=\"45\")")));
+    }
+    Ok(c[0])
+}
+
+impl BsdfModel for Polarizer {
+    fn lobes(&self) -> Lobe {
+        Lobe::DELTA_TRANSMISSION
+    }
+
+    fn has_mueller_model(&self) -> bool {
+        true
+    }
+
+    fn needs_tangent_frame(&self) -> bool {
+        true
+    }
+
     #[inline]
-    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+    fn eval<S: Spectrum>(&self, _ctx: &BsdfContext, _si: &SurfaceInteraction, _wi: Vec3, _wo: Vec3, _wl: &S::Wavelengths) -> S {
+        S::zero()
+    }
+
+    #[inline]
+    fn pdf<S: Spectrum>(&self, _ctx: &BsdfContext, _si: &SurfaceInteraction, _wi: Vec3, _wo: Vec3, _wl: &S::Wavelengths) -> f32 {
+        0.0
+    }
+
+    #[inline]
+    fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, _u1: f32, _u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+        if !ctx.wants(Lobe::DELTA_TRANSMISSION) {
+            return None;
+        }
         let wo = -wi;
         let scale: S = self.transmittance.eval_spectrum(si.uv, wl);
         let weight = if !self.polarizing {

@@ -2,8 +2,8 @@
 //!
 //! | parameter | type | default | meaning |
 //! |---|---|---|---|
-//! | `theta` | float | 0 | angle (degrees) of the fast axis from the surface's ∂p/∂u, counter-clockwise about its normal (as Mitsuba's; its polarizer turns the other way) |
-//! | `delta` | float | 90 | retardance in degrees: 90 a quarter-wave plate, 180 a half-wave plate |
+//! | `theta` | float or constant spectrum | 0 | angle (degrees) of the fast axis from the surface's ∂p/∂u, counter-clockwise about its normal (as Mitsuba's; its polarizer turns the other way) |
+//! | `delta` | float or constant spectrum | 90 | retardance in degrees: 90 a quarter-wave plate, 180 a half-wave plate |
 //! | `transmittance` | rgb / spectrum / float | 1 | scale on what passes |
 //!
 //! Light passes straight through (a delta transmission), the component
@@ -18,12 +18,15 @@
 //! </shape>
 //! ```
 
-use super::{BsdfSample, Lobe};
+use super::{BsdfContext, BsdfModel, BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
+use crate::scene::error::Result;
+use crate::scene::loader::PluginLoader;
+use crate::scene::props::Props;
 use crate::spectrum::mueller::{linear_retarder, sheet_to_canonical, stokes_basis};
-use crate::spectrum::Spectrum;
+use crate::spectrum::{Rgb, Spectrum};
 use crate::texture::Texture;
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub struct Retarder {
@@ -35,8 +38,44 @@ pub struct Retarder {
 }
 
 impl Retarder {
+    /// Reads the parameters in the table above.
+    pub fn from_props(props: &Props, loader: &dyn PluginLoader) -> Result<Retarder> {
+        Ok(Retarder {
+            theta: super::polarizer::angle_degrees(props, "theta", 0.0)?.to_radians(),
+            delta: super::polarizer::angle_degrees(props, "delta", 90.0)?.to_radians(),
+            transmittance: loader.reflectance(props, "transmittance", Rgb::WHITE)?,
+        })
+    }
+}
+
+impl BsdfModel for Retarder {
+    fn lobes(&self) -> Lobe {
+        Lobe::DELTA_TRANSMISSION
+    }
+
+    fn has_mueller_model(&self) -> bool {
+        true
+    }
+
+    fn needs_tangent_frame(&self) -> bool {
+        true
+    }
+
     #[inline]
-    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+    fn eval<S: Spectrum>(&self, _ctx: &BsdfContext, _si: &SurfaceInteraction, _wi: Vec3, _wo: Vec3, _wl: &S::Wavelengths) -> S {
+        S::zero()
+    }
+
+    #[inline]
+    fn pdf<S: Spectrum>(&self, _ctx: &BsdfContext, _si: &SurfaceInteraction, _wi: Vec3, _wo: Vec3, _wl: &S::Wavelengths) -> f32 {
+        0.0
+    }
+
+    #[inline]
+    fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, _u1: f32, _u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+        if !ctx.wants(Lobe::DELTA_TRANSMISSION) {
+            return None;
+        }
         let scale: S = self.transmittance.eval_spectrum(si.uv, wl);
         let weight = if S::POLARIZED {
             // Light travels along wi; the plate's retardance falls off as

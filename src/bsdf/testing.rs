@@ -3,7 +3,7 @@
 //! reciprocity, energy conservation (albedo ≤ 1), and `sample` agreeing with
 //! `eval / pdf`.
 
-use super::Bsdf;
+use super::{Bsdf, BsdfContext};
 use crate::geometry::SurfaceInteraction;
 use crate::math::{Frame, PI, Pcg32};
 use crate::math::sampling::square_to_uniform_sphere;
@@ -17,6 +17,8 @@ pub fn dummy_interaction() -> SurfaceInteraction {
         n: Vec3::Z,
         frame: Frame::from_normal(Vec3::Z),
         uv: Vec2::new(0.3, 0.6),
+        dp_du: Vec3::X,
+        dp_dv: Vec3::Y,
         shape: 0,
         prim: 0,
         bary: Vec2::ZERO,
@@ -118,7 +120,7 @@ pub fn chi2_test(bsdf: &Bsdf, wi: Vec3, seed: u64) {
     let mut observed = vec![0.0f64; THETA * PHI];
     let mut valid = 0usize;
     for _ in 0..N {
-        let s: Option<super::BsdfSample<Rgb>> = bsdf.sample(&si, wi, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()), super::TransportMode::Radiance, &());
+        let s: Option<super::BsdfSample<Rgb>> = bsdf.sample(&BsdfContext::RADIANCE, &si, wi, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()), &());
         if let Some(s) = s {
             if s.lobe.intersects(super::Lobe::DELTA) {
                 continue;
@@ -139,7 +141,7 @@ pub fn chi2_test(bsdf: &Bsdf, wi: Vec3, seed: u64) {
                     let theta = (ti as f64 + (a as f64 + 0.5) / SUB as f64) * std::f64::consts::PI / THETA as f64;
                     let phi = (pi as f64 + (b as f64 + 0.5) / SUB as f64) * 2.0 * std::f64::consts::PI / PHI as f64;
                     let wo = incident(theta as f32, phi as f32);
-                    sum += bsdf.pdf(&si, wi, wo) as f64 * theta.sin();
+                    sum += bsdf.pdf::<Rgb>(&BsdfContext::RADIANCE, &si, wi, wo, &()) as f64 * theta.sin();
                 }
             }
             let d_area = (std::f64::consts::PI / THETA as f64) * (2.0 * std::f64::consts::PI / PHI as f64) / (SUB * SUB) as f64;
@@ -195,8 +197,8 @@ pub fn check_reciprocity(bsdf: &Bsdf, seed: u64) {
         if a.z.abs() < 1e-3 || b.z.abs() < 1e-3 {
             continue;
         }
-        let fab: Rgb = bsdf.eval(&si, a, b, &());
-        let fba: Rgb = bsdf.eval(&si, b, a, &());
+        let fab: Rgb = bsdf.eval(&BsdfContext::RADIANCE, &si, a, b, &());
+        let fba: Rgb = bsdf.eval(&BsdfContext::RADIANCE, &si, b, a, &());
         for c in 0..3 {
             let x = fab[c] / b.z.abs();
             let y = fba[c] / a.z.abs();
@@ -212,7 +214,7 @@ pub fn estimate_albedo(bsdf: &Bsdf, wi: Vec3, n: usize, seed: u64) -> [f32; 3] {
     let mut sum = [0.0f64; 3];
     for _ in 0..n {
         let wo = square_to_uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
-        let f: Rgb = bsdf.eval(&si, wi, wo, &());
+        let f: Rgb = bsdf.eval(&BsdfContext::RADIANCE, &si, wi, wo, &());
         for c in 0..3 {
             sum[c] += f[c] as f64 * 4.0 * std::f64::consts::PI;
         }
@@ -220,34 +222,47 @@ pub fn estimate_albedo(bsdf: &Bsdf, wi: Vec3, n: usize, seed: u64) -> [f32; 3] {
     sum.map(|s| (s / n as f64) as f32)
 }
 
-/// `sample`'s weight and pdf agree with `eval` and `pdf` at the sampled direction.
+/// `sample`'s weight and pdf agree with `eval` and `pdf` at the sampled
+/// direction (radiance transport, every lobe). Fails too if fewer than
+/// 10 % of the samples are valid: a BSDF asked from its scattering side
+/// must scatter (a sampler returning `None` everywhere proves nothing).
 pub fn check_sample_consistency(bsdf: &Bsdf, wi: Vec3, seed: u64) {
+    check_sample_consistency_ctx(bsdf, &BsdfContext::RADIANCE, wi, seed)
+}
+
+/// As [`check_sample_consistency`], under the context `ctx`.
+pub fn check_sample_consistency_ctx(bsdf: &Bsdf, ctx: &BsdfContext, wi: Vec3, seed: u64) {
+    const N: usize = 5000;
     let si = SurfaceInteraction { wi, ..dummy_interaction() };
     let mut rng = Pcg32::new(seed, 11);
-    for _ in 0..5000 {
-        let Some(s) = bsdf.sample::<Rgb>(&si, wi, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()), super::TransportMode::Radiance, &()) else {
+    let mut valid = 0usize;
+    for _ in 0..N {
+        let Some(s) = bsdf.sample::<Rgb>(ctx, &si, wi, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()), &()) else {
             continue;
         };
+        valid += 1;
+        assert!(ctx.wants(s.lobe), "sampled lobe {:?} that the context does not want", s.lobe);
         if s.lobe.intersects(super::Lobe::DELTA) {
             // A delta lobe adds nothing to eval/pdf: for a purely specular BSDF
             // both vanish at the sampled direction (a mixed one, like plastic,
             // keeps its smooth lobes there).
             if !bsdf.lobes().intersects(super::Lobe::SMOOTH) {
-                assert_eq!(bsdf.pdf(&si, wi, s.wo), 0.0, "pdf must be zero on a delta lobe");
-                assert!(bsdf.eval::<Rgb>(&si, wi, s.wo, &()).is_zero(), "eval must be zero on a delta lobe");
+                assert_eq!(bsdf.pdf::<Rgb>(ctx, &si, wi, s.wo, &()), 0.0, "pdf must be zero on a delta lobe");
+                assert!(bsdf.eval::<Rgb>(ctx, &si, wi, s.wo, &()).is_zero(), "eval must be zero on a delta lobe");
             }
             assert!(s.weight.is_finite() && s.pdf > 0.0);
             continue;
         }
-        let pdf = bsdf.pdf(&si, wi, s.wo);
+        let pdf = bsdf.pdf::<Rgb>(ctx, &si, wi, s.wo, &());
         assert!((pdf - s.pdf).abs() <= 1e-3 * pdf.max(1e-3), "pdf {pdf} vs sampled {}", s.pdf);
-        let f: Rgb = bsdf.eval(&si, wi, s.wo, &());
+        let f: Rgb = bsdf.eval(ctx, &si, wi, s.wo, &());
         for c in 0..3 {
             let w = f[c] / pdf;
             assert!((w - s.weight[c]).abs() <= 1e-3 * (1.0 + w), "weight {} vs eval/pdf {w}", s.weight[c]);
         }
         assert!(s.weight.is_finite());
     }
+    assert!(valid * 10 >= N, "only {valid} of {N} samples were valid: the BSDF does not sample from this side");
 }
 
 #[test]
@@ -257,4 +272,18 @@ fn gamma_p_known_values() {
     assert!((1.0 - gamma_p(1.0, 5.991 / 2.0) - 0.05).abs() < 1e-3);
     assert!((gamma_p(5.0, 5.0) - 0.559_506_714_9).abs() < 1e-8);
     assert!((gamma_p(30.0, 25.0) - 0.182_103_916).abs() < 1e-6);
+}
+
+#[test]
+fn sample_consistency_rejects_a_bsdf_that_never_samples() {
+    // A diffuse BSDF asked from its back side returns no samples: the
+    // check must not pass vacuously.
+    use crate::texture::Texture;
+    let b = Bsdf::Diffuse(super::Diffuse { reflectance: Texture::constant(Rgb::new(0.5, 0.5, 0.5)) });
+    let back = Vec3::new(0.3, 0.1, -0.9).normalize();
+    assert!(std::panic::catch_unwind(|| check_sample_consistency(&b, back, 1)).is_err());
+    // Neither does it when the context wants no lobe the BSDF has.
+    let ctx = BsdfContext::RADIANCE.with_lobes(super::Lobe::GLOSSY);
+    assert!(std::panic::catch_unwind(|| check_sample_consistency_ctx(&b, &ctx, Vec3::Z, 2)).is_err());
+    check_sample_consistency(&b, Vec3::Z, 3);
 }

@@ -57,12 +57,16 @@
 //! ```
 
 use super::fresnel::{fresnel_dielectric, reflect};
-use super::{BsdfSample, Lobe};
+use super::dielectric::{AIR, BK7};
+use super::{BsdfContext, BsdfModel, BsdfSample, Lobe, choose_lobe};
 use crate::geometry::SurfaceInteraction;
-use crate::spectrum::Spectrum;
+use crate::scene::error::Result;
+use crate::scene::loader::PluginLoader;
+use crate::scene::props::Props;
 use crate::spectrum::mueller::{dielectric_amplitudes, interface_from_parameters, interface_to_canonical, specular_reflection};
+use crate::spectrum::{Rgb, Spectrum};
 use crate::texture::Texture;
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 
 #[derive(Clone, Debug)]
 pub struct ThinDielectric {
@@ -72,6 +76,20 @@ pub struct ThinDielectric {
 }
 
 impl ThinDielectric {
+    /// Reads the parameters in the table above.
+    pub fn from_props(props: &Props, loader: &dyn PluginLoader) -> Result<ThinDielectric> {
+        let int_ior = props.ior_spectrum("int_ior", BK7)?;
+        let ext_ior = props.ior_spectrum("ext_ior", AIR)?;
+        let specular_reflectance = loader.reflectance(props, "specular_reflectance", Rgb::WHITE)?;
+        let specular_transmittance = loader.reflectance(props, "specular_transmittance", Rgb::WHITE)?;
+        if int_ior.is_dispersive() || ext_ior.is_dispersive() {
+            let which = if int_ior.is_dispersive() { "int_ior" } else { "ext_ior" };
+            return Err(props.error_at(which, "thindielectric does not bend light, so it cannot disperse it: give a constant index"));
+        }
+        let eta = int_ior.nominal() / ext_ior.nominal();
+        Ok(ThinDielectric { eta, specular_reflectance, specular_transmittance })
+    }
+
     /// Total reflectance of the slab, all internal bounces included.
     pub fn slab_reflectance(&self, cos_i: f32) -> f32 {
         let r = fresnel_dielectric(cos_i.abs(), self.eta).r;
@@ -119,10 +137,39 @@ impl ThinDielectric {
         S::mueller(interface_to_canonical(m * (1.0 / m00), si.frame.n, incident, outgoing), scale)
     }
 
+}
+
+impl BsdfModel for ThinDielectric {
+    fn lobes(&self) -> Lobe {
+        Lobe::DELTA
+    }
+
+    fn has_mueller_model(&self) -> bool {
+        true
+    }
+
     #[inline]
-    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, u: f32, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+    fn eval<S: Spectrum>(&self, _ctx: &BsdfContext, _si: &SurfaceInteraction, _wi: Vec3, _wo: Vec3, _wl: &S::Wavelengths) -> S {
+        S::zero()
+    }
+
+    #[inline]
+    fn pdf<S: Spectrum>(&self, _ctx: &BsdfContext, _si: &SurfaceInteraction, _wi: Vec3, _wo: Vec3, _wl: &S::Wavelengths) -> f32 {
+        0.0
+    }
+
+    /// Reflection with the slab's reflectance R as probability, straight
+    /// transmission otherwise; a context that wants only one of them gets
+    /// that one with probability 1, weighted by R or 1 − R.
+    #[inline]
+    fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, u: f32, _u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
         let r = self.slab_reflectance(wi.z);
-        if u < r {
+        let p_r = choose_lobe(ctx, Lobe::DELTA_REFLECTION, Lobe::DELTA_TRANSMISSION, r)?;
+        // The unpolarised fraction of the chosen lobe over its probability
+        // (1 when the context wants both); the Mueller weights are scaled to
+        // m₀₀ = 1 and take it too.
+        let (w_r, w_t) = if p_r == r { (1.0, 1.0) } else { (r / p_r.max(f32::MIN_POSITIVE), (1.0 - r) / (1.0 - p_r).max(f32::MIN_POSITIVE)) };
+        if u < p_r {
             let wo = reflect(wi);
             let scale = self.specular_reflectance.eval_spectrum::<S>(si.uv, wl);
             let weight = if S::POLARIZED {
@@ -132,7 +179,10 @@ impl ThinDielectric {
             } else {
                 scale
             };
-            Some(BsdfSample { wo, weight, pdf: r, eta: 1.0, lobe: Lobe::DELTA_REFLECTION })
+            if w_r == 0.0 {
+                return None;
+            }
+            Some(BsdfSample { wo, weight: weight * w_r, pdf: p_r, eta: 1.0, lobe: Lobe::DELTA_REFLECTION })
         } else {
             let scale = self.specular_transmittance.eval_spectrum::<S>(si.uv, wl);
             let weight = if S::POLARIZED {
@@ -143,7 +193,10 @@ impl ThinDielectric {
             } else {
                 scale
             };
-            Some(BsdfSample { wo: -wi, weight, pdf: 1.0 - r, eta: 1.0, lobe: Lobe::DELTA_TRANSMISSION })
+            if w_t == 0.0 {
+                return None;
+            }
+            Some(BsdfSample { wo: -wi, weight: weight * w_t, pdf: 1.0 - p_r, eta: 1.0, lobe: Lobe::DELTA_TRANSMISSION })
         }
     }
 }
@@ -188,8 +241,8 @@ mod tests {
         for _ in 0..4000 {
             let wi = square_to_uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
             let u = rng.next_f32();
-            let a = pane.sample::<Rgb>(&si, wi, u, &()).expect("always scatters");
-            let b = pane.sample::<Polarized<Rgb>>(&si, wi, u, &()).expect("always scatters");
+            let a = pane.sample::<Rgb>(&BsdfContext::RADIANCE, &si, wi, u, Vec2::ZERO, &()).expect("always scatters");
+            let b = pane.sample::<Polarized<Rgb>>(&BsdfContext::RADIANCE, &si, wi, u, Vec2::ZERO, &()).expect("always scatters");
             assert!(a.lobe == b.lobe && a.pdf == b.pdf && a.wo == b.wo && a.eta == b.eta);
             lobes[(a.lobe == Lobe::DELTA_TRANSMISSION) as usize] += 1;
             for c in 0..3 {
@@ -221,11 +274,11 @@ mod tests {
         let si = tilted_interaction();
         for phi in [0.0f32, 1.0, 2.5, 4.0] {
             for wi in [incident(brewster, phi), -incident(brewster, phi)] {
-                let s = pane.sample::<Polarized<Rgb>>(&si, wi, 0.0, &()).expect("scatters");
+                let s = pane.sample::<Polarized<Rgb>>(&BsdfContext::RADIANCE, &si, wi, 0.0, Vec2::ZERO, &()).expect("scatters");
                 assert_eq!(s.lobe, Lobe::DELTA_REFLECTION);
                 let dop = degree_of_polarization(stokes(&s.weight));
                 assert!((dop - 1.0).abs() < 1e-4, "φ {phi}, reflection: DoP {dop}");
-                let s = pane.sample::<Polarized<Rgb>>(&si, wi, 0.999, &()).expect("scatters");
+                let s = pane.sample::<Polarized<Rgb>>(&BsdfContext::RADIANCE, &si, wi, 0.999, Vec2::ZERO, &()).expect("scatters");
                 assert_eq!(s.lobe, Lobe::DELTA_TRANSMISSION);
                 let dop_t = degree_of_polarization(stokes(&s.weight));
                 assert!((dop_t - r_s).abs() < 1e-4, "φ {phi}, transmission: DoP {dop_t} vs R_s {r_s}");

@@ -10,8 +10,11 @@
 //! </bsdf>
 //! ```
 
-use super::{Bsdf, BsdfSample, Lobe, TransportMode};
+use super::{Bsdf, BsdfContext, BsdfModel, BsdfSample, Lobe};
 use crate::geometry::SurfaceInteraction;
+use crate::scene::error::{Result, SceneError};
+use crate::scene::loader::PluginLoader;
+use crate::scene::props::Props;
 use crate::spectrum::Spectrum;
 use glam::{Vec2, Vec3};
 
@@ -27,30 +30,58 @@ fn flip(v: Vec3) -> Vec3 {
 }
 
 impl TwoSided {
-    pub fn has_mueller_model(&self) -> bool {
+    /// Reads the nested BSDF (or two: front and back).
+    pub fn from_props(props: &Props, loader: &dyn PluginLoader) -> Result<TwoSided> {
+        let node = props.node;
+        let nested = loader.nested_bsdfs(props)?;
+        if nested.is_empty() || nested.len() > 2 {
+            return Err(SceneError::at(&node.loc, "twosided takes one nested BSDF (or two: front and back)"));
+        }
+        let mut sides = vec![];
+        for (n, b) in nested {
+            if let Bsdf::TwoSided(_) = b {
+                return Err(SceneError::at(&n.loc, "twosided cannot nest another twosided"));
+            }
+            if b.lobes().intersects(Lobe::DIFFUSE_TRANSMISSION | Lobe::GLOSSY_TRANSMISSION | Lobe::DELTA_TRANSMISSION) {
+                return Err(SceneError::at(&n.loc, format!("twosided cannot nest a transmitting BSDF (\"{}\"); it already scatters on both sides", n.plugin)));
+            }
+            sides.push(b);
+        }
+        let front = sides.remove(0);
+        let back = sides.pop().unwrap_or_else(|| front.clone());
+        Ok(TwoSided { front: Box::new(front), back: Box::new(back) })
+    }
+}
+
+impl BsdfModel for TwoSided {
+    fn has_mueller_model(&self) -> bool {
         self.front.has_mueller_model() && self.back.has_mueller_model()
     }
 
-    pub fn lobes(&self) -> Lobe {
+    fn lobes(&self) -> Lobe {
         self.front.lobes() | self.back.lobes()
     }
 
-    #[inline]
-    pub fn eval<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
-        if wi.z >= 0.0 { self.front.eval(si, wi, wo, wl) } else { self.back.eval(si, flip(wi), flip(wo), wl) }
+    fn needs_tangent_frame(&self) -> bool {
+        self.front.needs_tangent_frame() || self.back.needs_tangent_frame()
     }
 
     #[inline]
-    pub fn pdf(&self, si: &SurfaceInteraction, wi: Vec3, wo: Vec3) -> f32 {
-        if wi.z >= 0.0 { self.front.pdf(si, wi, wo) } else { self.back.pdf(si, flip(wi), flip(wo)) }
+    fn eval<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
+        if wi.z >= 0.0 { self.front.eval(ctx, si, wi, wo, wl) } else { self.back.eval(ctx, si, flip(wi), flip(wo), wl) }
     }
 
     #[inline]
-    pub fn sample<S: Spectrum>(&self, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, mode: TransportMode, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+    fn pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> f32 {
+        if wi.z >= 0.0 { self.front.pdf::<S>(ctx, si, wi, wo, wl) } else { self.back.pdf::<S>(ctx, si, flip(wi), flip(wo), wl) }
+    }
+
+    #[inline]
+    fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
         if wi.z >= 0.0 {
-            self.front.sample(si, wi, u1, u2, mode, wl)
+            self.front.sample(ctx, si, wi, u1, u2, wl)
         } else {
-            let mut s = self.back.sample(si, flip(wi), u1, u2, mode, wl)?;
+            let mut s = self.back.sample(ctx, si, flip(wi), u1, u2, wl)?;
             s.wo = flip(s.wo);
             Some(s)
         }
@@ -75,7 +106,7 @@ mod tests {
         let albedo = estimate_albedo(&b, back, 100_000, 31);
         assert!((albedo[0] - 0.7).abs() < 0.01, "{albedo:?}");
         let si = dummy_interaction();
-        let f: Rgb = b.eval(&si, back, flip(Vec3::Z), &());
+        let f: Rgb = b.eval(&BsdfContext::RADIANCE, &si, back, flip(Vec3::Z), &());
         assert!((f[0] - 0.7 / std::f32::consts::PI).abs() < 1e-5);
     }
 }

@@ -701,7 +701,7 @@ mod tests {
     }
 
     fn shape(geometry: ShapeGeometry) -> Shape {
-        Shape { geometry, bsdf: 0, emitter: None, tangent_frame: false }
+        Shape { geometry, bsdf: 0, emitter: None, tangent_frame: false, pass_through: false }
     }
 
     /// Checks closest hits and occlusion of `n` random rays against brute

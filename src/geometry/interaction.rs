@@ -12,6 +12,11 @@ pub struct SurfaceInteraction {
     /// Shading frame (interpolated vertex normal where the mesh has them).
     pub frame: Frame,
     pub uv: Vec2,
+    /// ∂p/∂u and ∂p/∂v in Mitsuba's parametrisation of the shape (world
+    /// space, unnormalised); zero unless the shape builds tangent frames
+    /// ([`crate::bsdf::BsdfModel::needs_tangent_frame`]).
+    pub dp_du: Vec3,
+    pub dp_dv: Vec3,
     pub shape: u32,
     /// The primitive (triangle) hit and the hit's barycentrics (b1, b2) on
     /// it (zero for other shapes): for textures that read mesh attributes.

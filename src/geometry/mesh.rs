@@ -138,6 +138,22 @@ impl Mesh {
         Some(((b - a) * duv2.y - (c - a) * duv1.y) / det)
     }
 
+    /// ∂p/∂u and ∂p/∂v of triangle `i` (`None` without texture coordinates
+    /// or with degenerate ones).
+    pub fn dp_duv(&self, i: usize) -> Option<(Vec3, Vec3)> {
+        let uvs = self.uvs.as_ref()?;
+        let [ia, ib, ic] = self.triangles[i];
+        let [a, b, c] = self.vertices(i);
+        let (duv1, duv2) = (uvs[ib as usize] - uvs[ia as usize], uvs[ic as usize] - uvs[ia as usize]);
+        let det = duv1.x * duv2.y - duv1.y * duv2.x;
+        if !(det.abs() > 1e-12) {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let (e1, e2) = (b - a, c - a);
+        Some(((e1 * duv2.y - e2 * duv1.y) * inv, (e2 * duv1.x - e1 * duv2.x) * inv))
+    }
+
     /// Shading normal and uv at barycentrics (b1, b2) of triangle `i`.
     #[inline]
     pub fn shading(&self, i: usize, b1: f32, b2: f32, face_n: Vec3) -> (Vec3, Vec2) {

@@ -26,6 +26,10 @@ pub struct Shape {
     /// oriented within the surface); otherwise the tangent is a function of
     /// the normal alone, which is cheaper and all isotropic BSDFs need.
     pub tangent_frame: bool,
+    /// Rays pass (stochastically) through this shape: its BSDF has a null
+    /// lobe (`mask`, `null`) and it does not emit. Scenes where no shape has
+    /// it keep the plain closest-hit and any-hit paths.
+    pub pass_through: bool,
 }
 
 impl Shape {
@@ -79,11 +83,15 @@ impl Shape {
                 (p, n, n, uv, Vec2::ZERO)
             }
         };
-        let frame = match self.tangent_frame.then(|| self.dp_du(prim, p)).flatten() {
-            Some(dp_du) => Frame::from_normal_and_tangent(sh_n, dp_du),
-            None => Frame::from_normal(sh_n),
+        let (frame, dp_du, dp_dv) = match self.tangent_frame.then(|| self.dp_duv(prim, p)).flatten() {
+            Some((dp_du, dp_dv)) => (Frame::from_normal_and_tangent(sh_n, dp_du), dp_du, dp_dv),
+            None => {
+                let frame = Frame::from_normal(sh_n);
+                // Mitsuba's choice without a parametrisation: the frame's tangents.
+                (frame, if self.tangent_frame { frame.s } else { Vec3::ZERO }, if self.tangent_frame { frame.t } else { Vec3::ZERO })
+            }
         };
-        SurfaceInteraction { p, t, n, frame, uv, shape: shape_index, prim, bary, wi: frame.to_local(-ray_d) }
+        SurfaceInteraction { p, t, n, frame, uv, dp_du, dp_dv, shape: shape_index, prim, bary, wi: frame.to_local(-ray_d) }
     }
 
     /// As [`Shape::interaction`] for a shape of a shape group placed by an
@@ -108,24 +116,41 @@ impl Shape {
         } else {
             Frame::from_normal(sh_n)
         };
-        SurfaceInteraction { p: to_world.point(local.p), t, n, frame, wi: frame.to_local(-ray_d), ..local }
+        SurfaceInteraction {
+            p: to_world.point(local.p),
+            t,
+            n,
+            frame,
+            dp_du: to_world.vector(local.dp_du),
+            dp_dv: to_world.vector(local.dp_dv),
+            wi: frame.to_local(-ray_d),
+            ..local
+        }
     }
 
-    /// ∂p/∂u at `p` on primitive `prim`, with Mitsuba's parametrisations:
-    /// a mesh's texture coordinates (none: no preferred direction), the
-    /// sphere's longitude φ about its local z, the disk's radius.
-    fn dp_du(&self, prim: u32, p: Vec3) -> Option<Vec3> {
+    /// ∂p/∂u and ∂p/∂v at `p` on primitive `prim`, as Mitsuba 3.9 computes
+    /// them (magnitudes included, which bump mapping needs): a mesh's
+    /// texture coordinates; the sphere's u = φ/2π, v = θ/π; the disk's
+    /// u = r, v = φ/2π.
+    fn dp_duv(&self, prim: u32, p: Vec3) -> Option<(Vec3, Vec3)> {
+        use std::f32::consts::PI;
         match &self.geometry {
-            ShapeGeometry::Mesh(m) => m.dp_du(prim as usize),
+            ShapeGeometry::Mesh(m) => m.dp_duv(prim as usize),
             ShapeGeometry::Sphere(s) => {
                 let l = s.to_object.point(p);
-                Some(s.to_object.inverse_vector(Vec3::new(-l.y, l.x, 0.0)))
+                let rd = (l.x * l.x + l.y * l.y).sqrt();
+                let dp_du = s.to_object.inverse_vector(Vec3::new(-l.y, l.x, 0.0) * (2.0 * PI));
+                let (cos_phi, sin_phi) = if rd > 0.0 { (l.x / rd, l.y / rd) } else { (1.0, 0.0) };
+                let dp_dv = s.to_object.inverse_vector(Vec3::new(l.z * cos_phi, l.z * sin_phi, -rd) * PI);
+                Some((dp_du, dp_dv))
             }
             ShapeGeometry::Disk(d) => {
                 let l = d.to_world.inverse_point(p);
-                Some(d.to_world.vector(Vec3::new(l.x, l.y, 0.0)))
+                let r = (l.x * l.x + l.y * l.y).sqrt();
+                let (cos_phi, sin_phi) = if r > 0.0 { (l.x / r, l.y / r) } else { (1.0, 0.0) };
+                Some((d.to_world.vector(Vec3::new(cos_phi, sin_phi, 0.0)), d.to_world.vector(Vec3::new(-l.y, l.x, 0.0) * (2.0 * PI))))
             }
-            ShapeGeometry::Cylinder(c) => Some(c.surface(p).3),
+            ShapeGeometry::Cylinder(c) => Some((c.surface(p).3, c.to_world.vector(Vec3::Z * c.length))),
         }
     }
 

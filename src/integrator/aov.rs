@@ -217,7 +217,7 @@ fn albedo<S: Spectrum>(bsdf: &Bsdf, si: &crate::geometry::SurfaceInteraction, wi
             }
         }
         _ => {
-            let f: S = bsdf.eval(si, wi, Vec3::Z, wl);
+            let f: S = bsdf.eval(&crate::bsdf::BsdfContext::RADIANCE, si, wi, Vec3::Z, wl);
             f.to_rgb(wl) * std::f32::consts::PI
         }
     }

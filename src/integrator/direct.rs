@@ -26,7 +26,7 @@
 //! <integrator type="direct"><integer name="emitter_samples" value="4"/></integrator>
 //! ```
 
-use crate::bsdf::{Lobe, TransportMode};
+use crate::bsdf::{Lobe, BsdfContext};
 use crate::geometry::Ray;
 use crate::math::mis_power;
 use crate::sampler::Sampler;
@@ -43,7 +43,7 @@ pub struct Direct {
 impl Direct {
     pub fn li<S: Spectrum>(&self, scene: &Scene, ray: Ray, sampler: &mut Sampler, wl: &mut S::Wavelengths) -> S {
         let mut result = S::zero();
-        let hit = if self.hide_emitters { scene.intersect_hiding_emitters(&ray) } else { scene.intersect(&ray) };
+        let hit = scene.intersect_path(&ray, self.hide_emitters, sampler);
         let Some(si) = hit else {
             if !self.hide_emitters {
                 if let Some(env) = scene.environment_radiance::<S>(ray.d, wl) {
@@ -65,14 +65,14 @@ impl Direct {
             for _ in 0..self.emitter_samples {
                 let Some(es) = scene.sample_emitter::<S>(&si, sampler.next_2d(), wl) else { continue };
                 let wo = si.to_local(es.d);
-                let f: S = bsdf.eval(&si, si.wi, wo, wl);
+                let f: S = bsdf.eval(&BsdfContext::RADIANCE, &si, si.wi, wo, wl);
                 if f.is_zero() {
                     continue;
                 }
                 let w = if es.delta {
                     1.0 / ne
                 } else {
-                    mis_power(es.pdf * ne / total, bsdf.pdf(&si, si.wi, wo) * nb / total) / ne
+                    mis_power(es.pdf * ne / total, bsdf.pdf::<S>(&BsdfContext::RADIANCE, &si, si.wi, wo, wl) * nb / total) / ne
                 };
                 result += f * es.weight * w;
             }
@@ -84,11 +84,11 @@ impl Direct {
             S::terminate_secondary(wl);
         }
         for _ in 0..self.bsdf_samples {
-            let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), TransportMode::Radiance, wl) else { continue };
+            let Some(bs) = bsdf.sample::<S>(&BsdfContext::RADIANCE, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { continue };
             let d = si.to_world(bs.wo);
             let ray = Ray::new(si.spawn_origin(d), d);
             let delta = bs.lobe.intersects(Lobe::DELTA);
-            let (le, em_pdf) = match scene.intersect(&ray) {
+            let (le, em_pdf) = match scene.intersect_path(&ray, false, sampler) {
                 Some(hit) => match scene.emitted::<S>(&hit, wl) {
                     Some(le) => (le, if delta { 0.0 } else { scene.pdf_emitter_hit(si.p, &hit) }),
                     None => continue,

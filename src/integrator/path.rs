@@ -18,7 +18,7 @@
 //! <integrator type="path"><integer name="max_depth" value="8"/></integrator>
 //! ```
 
-use crate::bsdf::{Lobe, TransportMode};
+use crate::bsdf::{Lobe, BsdfContext};
 use crate::geometry::Ray;
 use crate::math::mis_power;
 use crate::sampler::Sampler;
@@ -45,7 +45,7 @@ impl PathTracer {
         let mut prev_delta = true;
 
         loop {
-            let hit = if self.hide_emitters && depth == 0 { scene.intersect_hiding_emitters(&ray) } else { scene.intersect(&ray) };
+            let hit = scene.intersect_path(&ray, self.hide_emitters && depth == 0, sampler);
             let visible = !(self.hide_emitters && depth == 0);
             let Some(si) = hit else {
                 if visible {
@@ -71,9 +71,9 @@ impl PathTracer {
             if bsdf.lobes().intersects(Lobe::SMOOTH) {
                 if let Some(es) = scene.sample_emitter::<S>(&si, sampler.next_2d(), wl) {
                     let wo = si.to_local(es.d);
-                    let f: S = bsdf.eval(&si, si.wi, wo, wl);
+                    let f: S = bsdf.eval(&BsdfContext::RADIANCE, &si, si.wi, wo, wl);
                     if !f.is_zero() {
-                        let w = if es.delta { 1.0 } else { mis_power(es.pdf, bsdf.pdf(&si, si.wi, wo)) };
+                        let w = if es.delta { 1.0 } else { mis_power(es.pdf, bsdf.pdf::<S>(&BsdfContext::RADIANCE, &si, si.wi, wo, wl)) };
                         result += throughput * f * es.weight * w;
                     }
                 }
@@ -84,7 +84,7 @@ impl PathTracer {
             if bsdf.disperses() {
                 S::terminate_secondary(wl);
             }
-            let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), TransportMode::Radiance, wl) else { break };
+            let Some(bs) = bsdf.sample::<S>(&BsdfContext::RADIANCE, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
             let d = si.to_world(bs.wo);
             throughput *= bs.weight;
             eta *= bs.eta;

@@ -31,7 +31,7 @@
 //! <integrator type="ptracer"><integer name="max_depth" value="8"/></integrator>
 //! ```
 
-use crate::bsdf::{Lobe, TransportMode};
+use crate::bsdf::{BsdfContext, Lobe};
 use crate::geometry::{Ray, SurfaceInteraction};
 use crate::math::SHADOW_EPSILON;
 use crate::sampler::Sampler;
@@ -62,8 +62,9 @@ impl ParticleTracer {
         if let Some(position_weight) = em.position_weight.filter(|_| !self.hide_emitters && self.max_depth >= 1) {
             if let Some(c) = camera.connect(em.p, width, height) {
                 let cos = em.n.dot(c.d);
-                if cos > 0.0 && self.visible(scene, em.p, em.n, camera.origin(), c.d) {
-                    let value: S = position_weight * (cos * c.importance / (c.dist * c.dist));
+                let tr = if cos > 0.0 { self.visible(scene, em.p, em.n, camera.origin(), c.d) } else { 0.0 };
+                if tr > 0.0 {
+                    let value: S = position_weight * (tr * cos * c.importance / (c.dist * c.dist));
                     splat(c.film * size, value.to_rgb(wl));
                 }
             }
@@ -78,7 +79,7 @@ impl ParticleTracer {
         // Segments traced so far (emitter → … → current vertex).
         let mut segments = 0u32;
         loop {
-            let Some(si) = scene.intersect(&ray) else { break };
+            let Some(si) = scene.intersect_path(&ray, false, sampler) else { break };
             segments += 1;
             // Connecting this vertex to the camera adds one more segment.
             if segments.saturating_add(1) > self.max_depth {
@@ -88,10 +89,11 @@ impl ParticleTracer {
             if bsdf.lobes().intersects(Lobe::SMOOTH) {
                 if let Some(c) = camera.connect(si.p, width, height) {
                     let wo = si.to_local(c.d);
-                    let f: S = bsdf.eval(&si, si.wi, wo, wl);
+                    let f: S = bsdf.eval(&BsdfContext::IMPORTANCE, &si, si.wi, wo, wl);
                     let correction = shading_correction(&si, si.wi, wo);
-                    if !f.is_zero() && correction > 0.0 && self.visible(scene, si.p, si.n, camera.origin(), c.d) {
-                        let value = beta * f * (correction * c.importance / (c.dist * c.dist));
+                    let tr = if !f.is_zero() && correction > 0.0 { self.visible(scene, si.p, si.n, camera.origin(), c.d) } else { 0.0 };
+                    if tr > 0.0 {
+                        let value = beta * f * (tr * correction * c.importance / (c.dist * c.dist));
                         splat(c.film * size, value.to_rgb(wl));
                     }
                 }
@@ -102,7 +104,7 @@ impl ParticleTracer {
             if bsdf.disperses() {
                 S::terminate_secondary(wl);
             }
-            let Some(bs) = bsdf.sample::<S>(&si, si.wi, sampler.next_1d(), sampler.next_2d(), TransportMode::Importance, wl) else { break };
+            let Some(bs) = bsdf.sample::<S>(&BsdfContext::IMPORTANCE, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
             let correction = shading_correction(&si, si.wi, bs.wo);
             beta *= bs.weight * correction;
             let d = si.to_world(bs.wo);
@@ -123,13 +125,16 @@ impl ParticleTracer {
         }
     }
 
-    /// Whether the segment from surface point `p` (normal `n`, zero for a
-    /// point light) to the pinhole is free.
-    fn visible(&self, scene: &Scene, p: Vec3, n: Vec3, eye: Vec3, d: Vec3) -> bool {
+    /// The fraction of light that passes the segment from surface point `p`
+    /// (normal `n`, zero for a point light) to the pinhole (0 if blocked).
+    fn visible(&self, scene: &Scene, p: Vec3, n: Vec3, eye: Vec3, d: Vec3) -> f32 {
         let o = if n != Vec3::ZERO { crate::geometry::ray::offset_origin(p, n, d) } else { p };
         let v = eye - o;
         let len = v.length();
-        len > 0.0 && !scene.occluded(&Ray { o, d: v / len, tmax: len * (1.0 - SHADOW_EPSILON) })
+        if !(len > 0.0) {
+            return 0.0;
+        }
+        scene.transmittance(&Ray { o, d: v / len, tmax: len * (1.0 - SHADOW_EPSILON) })
     }
 }
 

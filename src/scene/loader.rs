@@ -7,8 +7,7 @@ use super::error::{Result, SceneError};
 use super::props::Props;
 use super::xml::{self, Child, ChildTarget, Kind, Node};
 use super::Scene;
-use crate::bsdf::dispersion::DispersiveInterface;
-use crate::bsdf::{Bsdf, Conductor, Lobe, Dielectric, Diffuse, Plastic, Polarizer, Retarder, ThinDielectric, TwoSided};
+use crate::bsdf::{BlendBsdf, Bsdf, BumpMap, Conductor, Dielectric, Diffuse, Mask, NormalMap, Null, Plastic, Polarizer, Retarder, ThinDielectric, TwoSided};
 use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, EnvironmentMap, PointLight, Projector, SpotLight};
 use crate::film::{FilmSpec, Filter, FilterKind, PixelFormat};
 use crate::geometry::accel::Accel;
@@ -33,7 +32,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub const SHAPES: [&str; 10] = ["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "shapegroup", "instance"];
-pub const BSDFS: [&str; 8] = ["conductor", "dielectric", "diffuse", "plastic", "polarizer", "retarder", "thindielectric", "twosided"];
+pub const BSDFS: [&str; 13] = [
+    "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer", "retarder", "thindielectric", "twosided",
+];
 pub const TEXTURES: [&str; 3] = ["bitmap", "checkerboard", "mesh_attribute"];
 pub const EMITTERS: [&str; 7] = ["area", "point", "spot", "constant", "directional", "envmap", "projector"];
 pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
@@ -97,6 +98,49 @@ pub fn load_file_at_width(path: &Path, options: &LoadOptions, width: u32) -> Res
 pub fn load_str(path: &Path, text: &str, options: &LoadOptions) -> Result<Scene> {
     let root = xml::parse_str(path, text, &options.params)?;
     Loader::new(&root)?.build(&root, options)
+}
+
+/// What a plugin's `from_props` may ask of the loader: its texture
+/// parameters and its nested BSDFs (which need the scene's ids).
+pub trait PluginLoader {
+    /// A colour parameter: `rgb`/`spectrum`/`float`, or a nested (or
+    /// referenced) texture; `default` if absent.
+    fn texture(&self, props: &Props, name: &str, default: Rgb) -> Result<Texture>;
+    /// As [`PluginLoader::texture`], for a reflectance or transmittance: a
+    /// negative value is an error, a value above one a warning naming the
+    /// parameter.
+    fn reflectance(&self, props: &Props, name: &str, default: Rgb) -> Result<Texture>;
+    /// The nested (inline or referenced, unnamed) BSDFs of `props`' node, built.
+    fn nested_bsdfs(&self, props: &Props) -> Result<Vec<(Arc<Node>, Bsdf)>>;
+    /// The nested inline textures of `props`' node, whatever their names, built.
+    fn nested_textures(&self, props: &Props) -> Result<Vec<(Arc<Node>, Texture)>>;
+}
+
+impl PluginLoader for Loader {
+    fn texture(&self, props: &Props, name: &str, default: Rgb) -> Result<Texture> {
+        self.texture_input(props, name, default)
+    }
+
+    fn reflectance(&self, props: &Props, name: &str, default: Rgb) -> Result<Texture> {
+        self.reflectance_input(props, name, default)
+    }
+
+    fn nested_bsdfs(&self, props: &Props) -> Result<Vec<(Arc<Node>, Bsdf)>> {
+        let mut nested = self.nested(props, Kind::Bsdf)?;
+        for r in props.unnamed_refs() {
+            let t = self.resolve(r)?;
+            if t.kind != Kind::Bsdf {
+                return Err(SceneError::at(&r.loc, format!("{} takes BSDFs, not a <{}>", props.node.plugin, t.kind.tag())));
+            }
+            nested.push(t);
+        }
+        nested.into_iter().map(|n| self.make_bsdf(&n).map(|b| (n, b))).collect()
+    }
+
+    fn nested_textures(&self, props: &Props) -> Result<Vec<(Arc<Node>, Texture)>> {
+        let nested = self.nested(props, Kind::Texture)?;
+        nested.into_iter().map(|n| self.texture(&n).map(|t| (n, t))).collect()
+    }
 }
 
 struct Loader {
@@ -184,11 +228,6 @@ fn sensor_fov(props: &Props, aspect: f32) -> Result<f32> {
     }
     Ok(fov_x)
 }
-
-/// Default indices of refraction (Mitsuba's defaults by name).
-const BK7: f32 = 1.5046;
-const AIR: f32 = 1.000_277;
-const POLYPROPYLENE: f32 = 1.49;
 
 fn unknown_plugin(node: &Node, choices: &[&str]) -> SceneError {
     if let Some(feature) = super::unsupported::plugin(node.kind, &node.plugin) {
@@ -327,7 +366,6 @@ impl Loader {
         self.resolve_mesh_attributes()?;
         let accel = Accel::build_instanced(&self.shapes, &self.top_shapes, &self.groups, &self.instances);
         Ok(Scene {
-            shapes: self.shapes,
             bsdfs: self.bsdfs,
             emitters: self.emitters,
             accel,
@@ -338,6 +376,8 @@ impl Loader {
             stokes_requested,
             environment: self.environment,
             warnings: self.warnings.into_inner(),
+            pass_through: self.shapes.iter().any(|s| s.pass_through),
+            shapes: self.shapes,
         })
     }
 
@@ -417,7 +457,8 @@ impl Loader {
         };
         props.finish()?;
         let tangent_frame = self.bsdfs[bsdf as usize].needs_tangent_frame();
-        let shape = Shape { geometry, bsdf, emitter, tangent_frame };
+        let pass_through = self.bsdfs[bsdf as usize].passes_through() && emitter.is_none();
+        let shape = Shape { geometry, bsdf, emitter, tangent_frame, pass_through };
         if shape.area() <= 0.0 || !shape.area().is_finite() {
             return Err(SceneError::at(&node.loc, format!("this {} has zero or non-finite surface area", node.plugin)));
         }
@@ -585,134 +626,62 @@ impl Loader {
         Ok(i)
     }
 
-    fn make_bsdf(&mut self, node: &Arc<Node>) -> Result<Bsdf> {
+    fn make_bsdf(&self, node: &Arc<Node>) -> Result<Bsdf> {
         let props = Props::new(node);
         let bsdf = match node.plugin.as_str() {
-            "diffuse" => Bsdf::Diffuse(Diffuse { reflectance: self.texture_input(&props, "reflectance", Rgb::new(0.5, 0.5, 0.5))? }),
-            "polarizer" => Bsdf::Polarizer(Polarizer {
-                theta: props.float_checked("theta", 0.0, f32::is_finite, "an angle in degrees")?.to_radians(),
-                transmittance: self.texture_input(&props, "transmittance", Rgb::WHITE)?,
-                polarizing: props.bool("polarizing", true)?,
-            }),
-            "retarder" => Bsdf::Retarder(Retarder {
-                theta: props.float_checked("theta", 0.0, f32::is_finite, "an angle in degrees")?.to_radians(),
-                delta: props.float_checked("delta", 90.0, f32::is_finite, "an angle in degrees")?.to_radians(),
-                transmittance: self.texture_input(&props, "transmittance", Rgb::WHITE)?,
-            }),
-            "conductor" => self.conductor(node, &props)?,
-            "dielectric" | "thindielectric" => {
-                let int_ior = props.ior_spectrum("int_ior", BK7)?;
-                let ext_ior = props.ior_spectrum("ext_ior", AIR)?;
-                let specular_reflectance = self.texture_input(&props, "specular_reflectance", Rgb::WHITE)?;
-                let specular_transmittance = self.texture_input(&props, "specular_transmittance", Rgb::WHITE)?;
-                let eta = int_ior.nominal() / ext_ior.nominal();
-                let dispersive = int_ior.is_dispersive() || ext_ior.is_dispersive();
-                if node.plugin == "dielectric" {
-                    let dispersion = dispersive.then(|| Box::new(DispersiveInterface { int_ior, ext_ior }));
-                    Bsdf::Dielectric(Dielectric { eta, dispersion, specular_reflectance, specular_transmittance })
-                } else {
-                    if dispersive {
-                        let which = if int_ior.is_dispersive() { "int_ior" } else { "ext_ior" };
-                        return Err(props.error_at(which, "thindielectric does not bend light, so it cannot disperse it: give a constant index"));
-                    }
-                    Bsdf::ThinDielectric(ThinDielectric { eta, specular_reflectance, specular_transmittance })
-                }
-            }
-            "plastic" => {
-                let int_ior = props.ior("int_ior", POLYPROPYLENE)?;
-                let ext_ior = props.ior("ext_ior", AIR)?;
-                let diffuse = self.texture_input(&props, "diffuse_reflectance", Rgb::new(0.5, 0.5, 0.5))?;
-                let specular = if props.has("specular_reflectance") || props.has_child("specular_reflectance") {
-                    Some(self.texture_input(&props, "specular_reflectance", Rgb::WHITE)?)
-                } else {
-                    None
-                };
-                let nonlinear = props.bool("nonlinear", false)?;
-                Bsdf::Plastic(Plastic::new(diffuse, specular, int_ior / ext_ior, nonlinear))
-            }
-            "twosided" => {
-                let mut nested = self.nested(&props, Kind::Bsdf)?;
-                for r in props.unnamed_refs() {
-                    let t = self.resolve(r)?;
-                    if t.kind != Kind::Bsdf {
-                        return Err(SceneError::at(&r.loc, format!("twosided takes BSDFs, not a <{}>", t.kind.tag())));
-                    }
-                    nested.push(t);
-                }
-                if nested.is_empty() || nested.len() > 2 {
-                    return Err(SceneError::at(&node.loc, "twosided takes one nested BSDF (or two: front and back)"));
-                }
-                let mut sides = vec![];
-                for n in &nested {
-                    let b = self.make_bsdf(n)?;
-                    if let Bsdf::TwoSided(_) = b {
-                        return Err(SceneError::at(&n.loc, "twosided cannot nest another twosided"));
-                    }
-                    if b.lobes().intersects(Lobe::DIFFUSE_TRANSMISSION | Lobe::GLOSSY_TRANSMISSION | Lobe::DELTA_TRANSMISSION) {
-                        return Err(SceneError::at(&n.loc, format!("twosided cannot nest a transmitting BSDF (\"{}\"); it already scatters on both sides", n.plugin)));
-                    }
-                    sides.push(b);
-                }
-                let front = sides.remove(0);
-                let back = sides.pop().unwrap_or_else(|| front.clone());
-                Bsdf::TwoSided(TwoSided { front: Box::new(front), back: Box::new(back) })
-            }
+            "diffuse" => Bsdf::Diffuse(Diffuse::from_props(&props, self)?),
+            "polarizer" => Bsdf::Polarizer(Polarizer::from_props(&props, self)?),
+            "retarder" => Bsdf::Retarder(Retarder::from_props(&props, self)?),
+            "conductor" => Bsdf::Conductor(Conductor::from_props(&props, self)?),
+            "dielectric" => Bsdf::Dielectric(Dielectric::from_props(&props, self)?),
+            "thindielectric" => Bsdf::ThinDielectric(ThinDielectric::from_props(&props, self)?),
+            "plastic" => Bsdf::Plastic(Plastic::from_props(&props, self)?),
+            "twosided" => Bsdf::TwoSided(TwoSided::from_props(&props, self)?),
+            "null" => Bsdf::Null(Null),
+            "mask" => Bsdf::Mask(Mask::from_props(&props, self)?),
+            "blendbsdf" => Bsdf::BlendBsdf(BlendBsdf::from_props(&props, self)?),
+            "normalmap" => Bsdf::NormalMap(NormalMap::from_props(&props, self)?),
+            "bumpmap" => Bsdf::BumpMap(BumpMap::from_props(&props, self)?),
             _ => return Err(unknown_plugin(node, &BSDFS)),
         };
         props.finish()?;
         Ok(bsdf)
     }
 
-    /// `conductor`: η and k given directly, or a named metal (or `none`).
-    fn conductor(&self, node: &Arc<Node>, props: &Props) -> Result<Bsdf> {
-        let specular_reflectance = self.texture_input(props, "specular_reflectance", Rgb::WHITE)?;
-        let material = props.string_opt("material")?;
-        let given = props.has("eta") || props.has("k");
-        let mut spectra = None;
-        let (eta, k) = match material {
-            Some(name) if name != "none" => {
-                let loc = node.props.iter().find(|p| p.name == "material").map_or(&node.loc, |p| &p.loc);
-                if given {
-                    return Err(SceneError::at(loc, "give either \"material\" or \"eta\"/\"k\", not both"));
-                }
-                let metal = crate::bsdf::metals::METALS.iter().find(|m| m.name == name).ok_or_else(|| {
-                    let mut names: Vec<&str> = crate::bsdf::metals::METALS.iter().map(|m| m.name).collect();
-                    names.push("none");
-                    SceneError::at(loc, format!("unknown conductor material \"{name}\"")).with_choices(&names)
-                })?;
-                spectra = crate::bsdf::metal_spectra::METAL_SPECTRA.iter().find(|m| m.name == name);
-                (Rgb(metal.eta), Rgb(metal.k))
-            }
-            _ => (props.color("eta", Rgb::BLACK)?, props.color("k", Rgb::WHITE)?),
-        };
-        if !(eta.is_finite() && k.is_finite() && eta.0.iter().chain(&k.0).all(|&v| v >= 0.0)) {
-            return Err(SceneError::at(&node.loc, "conductor \"eta\" and \"k\" must be finite and not negative"));
+    /// A colour or scalar parameter: `rgb`/`spectrum`/`float`, or a nested
+    /// (or referenced) texture, and where it was given; `None` if absent.
+    fn texture_input_at(&self, props: &Props, name: &str) -> Result<Option<(Texture, super::Location)>> {
+        let at_prop = || props.node.props.iter().find(|p| p.name == name).map_or(&props.node.loc, |p| &p.loc).clone();
+        if let Some(listed) = props.listed_opt(name) {
+            return Ok(Some((Texture::Spectral { rgb: listed.to_rgb(false), spectrum: Arc::new(listed) }, at_prop())));
         }
-        Ok(Bsdf::Conductor(Conductor { eta, k, spectra, specular_reflectance }))
+        if let Some(c) = props.color_opt(name)? {
+            return Ok(Some((Texture::constant(c), at_prop())));
+        }
+        match props.child_named(name) {
+            Some(child) => {
+                let node = self.resolve(child)?;
+                if node.kind != Kind::Texture {
+                    return Err(SceneError::at(&child.loc, format!("\"{name}\" must be a colour or a <texture>, not a <{}>", node.kind.tag())));
+                }
+                Ok(Some((self.texture(&node)?, node.loc.clone())))
+            }
+            None => Ok(None),
+        }
+    }
+
+    /// A colour or scalar parameter with no range (emission, weights,
+    /// opacities, normal and height maps); `default` if absent.
+    fn texture_input(&self, props: &Props, name: &str, default: Rgb) -> Result<Texture> {
+        Ok(self.texture_input_at(props, name)?.map_or_else(|| Texture::constant(default), |(t, _)| t))
     }
 
     /// A reflectance or transmittance (all colour inputs of BSDFs are):
     /// `rgb`/`spectrum`/`float`, or a nested (or referenced) texture. A
     /// negative value is an error; a value above one (more light out than
     /// in) a warning naming the parameter.
-    fn texture_input(&self, props: &Props, name: &str, default: Rgb) -> Result<Texture> {
-        let (texture, loc) = if let Some(listed) = props.listed_opt(name) {
-            (Texture::Spectral { rgb: listed.to_rgb(false), spectrum: Arc::new(listed) }, None)
-        } else if let Some(c) = props.color_opt(name)? {
-            (Texture::constant(c), None)
-        } else {
-            match props.child_named(name) {
-                Some(child) => {
-                    let node = self.resolve(child)?;
-                    if node.kind != Kind::Texture {
-                        return Err(SceneError::at(&child.loc, format!("\"{name}\" must be a colour or a <texture>, not a <{}>", node.kind.tag())));
-                    }
-                    (self.texture(&node)?, Some(node.loc.clone()))
-                }
-                None => return Ok(Texture::constant(default)),
-            }
-        };
-        let loc = loc.unwrap_or_else(|| props.node.props.iter().find(|p| p.name == name).map_or(&props.node.loc, |p| &p.loc).clone());
+    fn reflectance_input(&self, props: &Props, name: &str, default: Rgb) -> Result<Texture> {
+        let Some((texture, loc)) = self.texture_input_at(props, name)? else { return Ok(Texture::constant(default)) };
         let (lo, hi) = texture_range(&texture);
         let what = format!("\"{name}\" of {} \"{}\"", props.node.kind.tag(), props.node.plugin);
         if lo < 0.0 {

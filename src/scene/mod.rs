@@ -25,7 +25,7 @@ use crate::geometry::{Ray, Shape, SurfaceInteraction};
 use crate::integrator::Integrator;
 use crate::emitter::Emitter;
 use crate::math::SHADOW_EPSILON;
-use crate::sampler::SamplerSpec;
+use crate::sampler::{Sampler, SamplerSpec};
 use crate::sensor::Camera;
 use crate::spectrum::Spectrum;
 use glam::{Vec2, Vec3};
@@ -50,18 +50,33 @@ pub struct Scene {
     /// Warnings from loading (each a line "warning: …", naming the
     /// parameter and its location), for the caller to show.
     pub warnings: Vec<String>,
+    /// Some shape lets rays through ([`Shape::pass_through`]: `mask`,
+    /// `null`). When none does, rays take the plain closest-hit and any-hit
+    /// paths and no random number is spent on pass-through.
+    pub pass_through: bool,
 }
+
+/// Most surfaces a ray passes through before it gives up (a guard against
+/// a ray stuck on one surface; far more layers than any foliage has).
+const MAX_PASSES: u32 = 1024;
 
 impl Scene {
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
         let hit = self.accel.intersect(ray)?;
+        Some(self.interaction(&hit, ray))
+    }
+
+    /// The full interaction at a hit the accelerator found along `ray`
+    /// (moved to world space for a shape placed by an instance).
+    #[inline]
+    fn interaction(&self, hit: &crate::geometry::accel::Hit, ray: &Ray) -> SurfaceInteraction {
         let shape = &self.shapes[hit.shape as usize];
         if hit.instance != crate::geometry::accel::NO_INSTANCE {
             let to_world = &self.accel.instance(hit.instance).to_world;
-            return Some(shape.interaction_instanced(to_world, hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary));
+            return shape.interaction_instanced(to_world, hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary);
         }
-        Some(shape.interaction(hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary))
+        shape.interaction(hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary)
     }
 
     /// The first hit on a shape that does not emit: Mitsuba's
@@ -84,9 +99,82 @@ impl Scene {
         self.accel.occluded(ray)
     }
 
+    /// The ray continuing straight on past the surface at `si`.
+    #[inline]
+    fn continue_past(ray: &Ray, si: &SurfaceInteraction) -> Ray {
+        let o = si.spawn_origin(ray.d);
+        Ray { o, d: ray.d, tmax: ray.tmax - (o - ray.o).length() }
+    }
+
+    /// The surface a path ray meets: the closest hit, except that a
+    /// pass-through shape (`mask`, `null`) is met only with probability
+    /// equal to its opacity α there (one random number per such shape
+    /// crossed), else the ray goes straight on — Mitsuba's null lobe,
+    /// chosen per ray, without counting a bounce. With `hide_emitters`,
+    /// emitting shapes are passed too (camera rays of `hide_emitters`).
+    #[inline]
+    pub fn intersect_path(&self, ray: &Ray, hide_emitters: bool, sampler: &mut Sampler) -> Option<SurfaceInteraction> {
+        if !self.pass_through {
+            return if hide_emitters { self.intersect_hiding_emitters(ray) } else { self.intersect(ray) };
+        }
+        let mut ray = *ray;
+        for _ in 0..MAX_PASSES {
+            let si = self.intersect(&ray)?;
+            let shape = &self.shapes[si.shape as usize];
+            let pass = if shape.pass_through {
+                let alpha = self.bsdfs[shape.bsdf as usize].opacity(&si);
+                alpha < 1.0 && !(alpha > 0.0 && sampler.next_1d() < alpha)
+            } else {
+                hide_emitters && shape.emitter.is_some()
+            };
+            if !pass {
+                return Some(si);
+            }
+            ray = Self::continue_past(&ray, &si);
+        }
+        None
+    }
+
+    /// The fraction of light that gets through along the shadow ray `ray`:
+    /// 0 if an opaque surface blocks it, else the product of 1 − α over the
+    /// pass-through shapes it crosses (Mitsuba's null transmission). Scenes
+    /// without pass-through shapes take the any-hit path.
+    #[inline]
+    pub fn transmittance(&self, ray: &Ray) -> f32 {
+        if !self.accel.occluded(ray) {
+            return 1.0;
+        }
+        if !self.pass_through {
+            return 0.0;
+        }
+        let mut ray = *ray;
+        let mut tr = 1.0f32;
+        for _ in 0..MAX_PASSES {
+            let Some(hit) = self.accel.intersect(&ray) else { return tr };
+            let shape = &self.shapes[hit.shape as usize];
+            if !shape.pass_through {
+                return 0.0;
+            }
+            let si = self.interaction(&hit, &ray);
+            tr *= 1.0 - self.bsdfs[shape.bsdf as usize].opacity(&si);
+            if !(tr > 0.0) {
+                return 0.0;
+            }
+            ray = Self::continue_past(&ray, &si);
+            if !(ray.tmax > 0.0) {
+                return tr;
+            }
+        }
+        0.0
+    }
+
+    /// The BSDF at `si`; on a pass-through shape that of the part that is
+    /// there ([`Bsdf::surface`]), the ray having chosen to meet it.
     #[inline]
     pub fn bsdf(&self, si: &SurfaceInteraction) -> &Bsdf {
-        &self.bsdfs[self.shapes[si.shape as usize].bsdf as usize]
+        let shape = &self.shapes[si.shape as usize];
+        let b = &self.bsdfs[shape.bsdf as usize];
+        if shape.pass_through { b.surface() } else { b }
     }
 
     /// Emitted radiance from the surface at `si` back along the ray (zero
@@ -159,8 +247,13 @@ impl Scene {
             }
             None => Ray { o, d: sample.d, tmax: f32::INFINITY },
         };
-        if self.occluded(&ray) {
+        let tr = self.transmittance(&ray);
+        if !(tr > 0.0) {
             return None;
+        }
+        let mut sample = sample;
+        if tr < 1.0 {
+            sample.weight = sample.weight * tr;
         }
         Some(sample)
     }

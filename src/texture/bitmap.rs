@@ -213,6 +213,32 @@ impl Bitmap {
         }
     }
 
+    /// The uv gradient of the luminance of the bilinear interpolation, as
+    /// Mitsuba's `eval_1_grad`: the partials in texel units on the cell
+    /// holding the point, taken back through `to_uv` (transpose of its
+    /// linear part) and scaled by the resolution. Zero for `nearest`.
+    pub fn eval_1_grad(&self, uv: Vec2) -> Vec2 {
+        if self.filter == Filter::Nearest {
+            return Vec2::ZERO;
+        }
+        let st = self.to_uv.transform_point2(uv);
+        if !st.is_finite() {
+            return Vec2::ZERO;
+        }
+        let (x, y) = (st.x * self.width as f32 - 0.5, st.y * self.height as f32 - 0.5);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let lum = |x, y| super::luminance(self.texel(x, y));
+        let (f00, f10, f01, f11) = (lum(x0, y0), lum(x0 + 1, y0), lum(x0, y0 + 1), lum(x0 + 1, y0 + 1));
+        let dx = (1.0 - fy) * (f10 - f00) + fy * (f11 - f01);
+        let dy = (1.0 - fx) * (f01 - f00) + fx * (f11 - f10);
+        // df/du = Σ_k df/dst_k · dst_k/du: the transpose of to_uv's matrix.
+        let m = self.to_uv.matrix2;
+        let (dx, dy) = (dx * self.width as f32, dy * self.height as f32);
+        Vec2::new(m.x_axis.x * dx + m.x_axis.y * dy, m.y_axis.x * dx + m.y_axis.y * dy)
+    }
+
     pub fn max_value(&self) -> f32 {
         self.texels.iter().flat_map(|t| t.0).fold(0.0, f32::max)
     }
@@ -250,6 +276,25 @@ mod tests {
         assert_eq!(b.eval(Vec2::new(0.25, 0.5)), Rgb::BLACK);
         assert_eq!(b.eval(Vec2::new(0.75, 0.5)), Rgb::WHITE);
         assert!((b.eval(Vec2::new(0.5, 0.5))[0] - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn gradient_is_that_of_the_bilinear_interpolation_through_to_uv() {
+        let texels = (0..25).map(|i| {
+            let v = ((i * 7) % 11) as f32 / 10.0;
+            Rgb::new(v, 0.5 * v, 1.0 - v)
+        });
+        let to_uv = Affine2::from_cols(Vec2::new(1.5, 0.3), Vec2::new(-0.2, 2.0), Vec2::new(0.1, 0.05));
+        let b = Bitmap { width: 5, height: 5, texels: texels.collect(), filter: Filter::Bilinear, wrap: Wrap::Repeat, to_uv };
+        let lum = |uv: Vec2| super::super::luminance(b.eval(uv));
+        for uv in [Vec2::new(0.13, 0.27), Vec2::new(0.61, 0.44), Vec2::new(0.9, 0.02)] {
+            let g = b.eval_1_grad(uv);
+            let h = 1e-3;
+            let fd = Vec2::new((lum(uv + Vec2::X * h) - lum(uv - Vec2::X * h)) / (2.0 * h), (lum(uv + Vec2::Y * h) - lum(uv - Vec2::Y * h)) / (2.0 * h));
+            assert!((g - fd).length() < 2e-2 * (1.0 + fd.length()), "uv {uv}: {g} vs finite difference {fd}");
+        }
+        let nearest = Bitmap { filter: Filter::Nearest, ..b.clone() };
+        assert_eq!(nearest.eval_1_grad(Vec2::new(0.3, 0.3)), Vec2::ZERO);
     }
 }
 

@@ -76,6 +76,24 @@ impl Texture {
         }
     }
 
+    /// A scalar value (Mitsuba's `eval_1`): the luminance of the colour
+    /// (the value itself for a grey or a float).
+    #[inline]
+    pub fn eval_1(&self, uv: Vec2) -> f32 {
+        luminance(self.eval(uv))
+    }
+
+    /// The gradient of [`Texture::eval_1`] in uv (Mitsuba's `eval_1_grad`):
+    /// that of the bilinear interpolation for a bilinear bitmap, zero for
+    /// the piecewise-constant ones (constant, nearest bitmap, checkerboard).
+    #[inline]
+    pub fn eval_1_grad(&self, uv: Vec2) -> Vec2 {
+        match self {
+            Texture::Bitmap(b) => b.eval_1_grad(uv),
+            _ => Vec2::ZERO,
+        }
+    }
+
     /// A constant colour.
     pub fn constant(rgb: Rgb) -> Texture {
         Texture::Constant(rgb, UpliftCache::default())
@@ -112,6 +130,12 @@ impl Texture {
             Texture::MeshAttribute(m) => m.stats().1,
         }
     }
+}
+
+/// Luminance of linear sRGB (Rec. 709 Y, Mitsuba's `luminance`).
+#[inline]
+pub fn luminance(c: Rgb) -> f32 {
+    0.212671 * c[0] + 0.715160 * c[1] + 0.072169 * c[2]
 }
 
 /// The 2-D affine part of a 4×4 `to_uv` matrix.
