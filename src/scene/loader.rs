@@ -141,6 +141,10 @@ fn unknown_plugin(node: &Node, choices: &[&str]) -> SceneError {
         return SceneError::at(&node.loc, format!("the {} plugin \"{}\" ({feature}) is not supported yet", node.kind.tag(), node.plugin))
             .with_help(format!("supported {} plugins: {}", node.kind.tag(), choices.join(", ")));
     }
+    if let Some(instead) = super::unsupported::removed(node.kind, &node.plugin) {
+        return SceneError::at(&node.loc, format!("unknown {} plugin \"{}\" (a Mitsuba 0.6 plugin that Mitsuba 3 removed)", node.kind.tag(), node.plugin))
+            .with_help(format!("{instead}; valid choices are: {}", choices.join(", ")));
+    }
     SceneError::at(&node.loc, format!("unknown {} plugin \"{}\"", node.kind.tag(), node.plugin)).with_choices(choices)
 }
 
