@@ -243,7 +243,7 @@ impl Loader {
         if let (Integrator::Particle(_), Some(loc)) = (&integrator, &integrator_loc) {
             // A light path must start somewhere finite and end in a pinhole.
             if !matches!(camera, Camera::Perspective(_)) {
-                return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic camera)")
+                return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic or thin-lens camera)")
                     .with_choices(&["perspective"]));
             }
             if let Some(e) = self.emitters.iter().find(|e| matches!(e, Emitter::Constant(_) | Emitter::Directional(_))) {
