@@ -283,3 +283,24 @@ fn objects_declared_at_the_top_level_for_reference() {
     assert_eq!(e.location.as_ref().map(|l| (l.line, l.col)), Some((6, 9)), "{e}");
     assert!(e.message.contains("a sensor cannot take a reference to a <emitter>"), "{e}");
 }
+
+#[test]
+fn plugins_mitsuba_3_removed_say_what_to_use() {
+    let path = std::env::temp_dir().join("snell-documents-removed.xml");
+    for (body, line, instead) in [
+        ("    <integrator type=\"bdpt\"/>\n", 7, "use path"),
+        ("    <shape type=\"sphere\"><bsdf type=\"phong\"/></shape>\n", 7, "Mitsuba 3 has no such BSDF"),
+    ] {
+        let text = format!("<scene version=\"0.6.0\">\n    {SENSOR}\n{body}</scene>\n");
+        let e = match snell::load_str(&path, &text, &LoadOptions::default()) {
+            Ok(_) => panic!("{body} should fail"),
+            Err(e) => e,
+        };
+        assert_eq!(e.location.as_ref().map(|l| l.line), Some(line), "{e}");
+        assert!(e.message.contains("Mitsuba 3 removed"), "{e}");
+        assert!(e.help.as_deref().unwrap_or_default().contains(instead), "{e}");
+    }
+    let text = format!("<scene version=\"0.6.0\">\n    {SENSOR}\n</scene>\n").replace("hdrfilm", "ldrfilm");
+    let e = snell::load_str(&path, &text, &LoadOptions::default()).err().expect("ldrfilm fails");
+    assert!(e.help.as_deref().unwrap_or_default().contains("use hdrfilm"), "{e}");
+}

@@ -234,6 +234,10 @@ fn unknown_plugin(node: &Node, choices: &[&str]) -> SceneError {
         return SceneError::at(&node.loc, format!("the {} plugin \"{}\" ({feature}) is not supported yet", node.kind.tag(), node.plugin))
             .with_help(format!("supported {} plugins: {}", node.kind.tag(), choices.join(", ")));
     }
+    if let Some(instead) = super::unsupported::removed(node.kind, &node.plugin) {
+        return SceneError::at(&node.loc, format!("unknown {} plugin \"{}\" (a Mitsuba 0.6 plugin that Mitsuba 3 removed)", node.kind.tag(), node.plugin))
+            .with_help(format!("{instead}; valid choices are: {}", choices.join(", ")));
+    }
     SceneError::at(&node.loc, format!("unknown {} plugin \"{}\"", node.kind.tag(), node.plugin)).with_choices(choices)
 }
 
@@ -350,7 +354,7 @@ impl Loader {
         if let (Integrator::Particle(_), Some(loc)) = (&integrator, &integrator_loc) {
             // A light path must start somewhere finite and end in a pinhole.
             if !matches!(camera, Camera::Perspective(_)) {
-                return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic camera)")
+                return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic or thin-lens camera)")
                     .with_choices(&["perspective"]));
             }
             if let Some(e) = self.emitters.iter().find(|e| matches!(e, Emitter::Constant(_) | Emitter::Directional(_) | Emitter::EnvMap(_))) {

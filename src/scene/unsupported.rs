@@ -8,6 +8,9 @@
 //! | curves | `bsplinecurve`, `linearcurve` shapes |
 //! | signed distance fields | `sdfgrid` shape |
 //! | id aliases | `<alias id="…" as="…"/>` |
+//!
+//! [`removed`] names Mitsuba 0.6 plugins that Mitsuba 3 no longer has, so
+//! that an old scene's "unknown plugin" error says what to use instead.
 
 use super::xml::Kind;
 
@@ -29,6 +32,21 @@ pub fn plugin(kind: Kind, name: &str) -> Option<&'static str> {
         (Kind::Shape, "bsplinecurve" | "linearcurve") => Some("curves"),
         (Kind::Shape, "sdfgrid") => Some("signed distance fields"),
         (Kind::Texture, "gridvolume" | "constvolume") => Some("participating media"),
+        _ => None,
+    }
+}
+
+/// What to write instead of a Mitsuba 0.6 plugin that Mitsuba 3 removed.
+pub fn removed(kind: Kind, name: &str) -> Option<&'static str> {
+    match (kind, name) {
+        (Kind::Film, "ldrfilm") => Some("use hdrfilm (Snell writes 8-bit sRGB with -o image.png)"),
+        (Kind::Sampler, "halton" | "hammersley" | "sobol") => Some("use independent"),
+        (Kind::Integrator, "bdpt" | "mlt" | "pssmlt" | "erpt" | "photonmapper" | "ppm" | "sppm" | "vpl") => Some("use path"),
+        (Kind::Bsdf, "phong" | "ward" | "roughcoating" | "coating" | "irawan" | "hk" | "difftrans" | "roughdiffuse") => {
+            Some("Mitsuba 3 has no such BSDF; diffuse, plastic, conductor or dielectric are the closest")
+        }
+        (Kind::Texture, "scale" | "vertexcolors" | "wireframe" | "gridtexture" | "curvature") => Some("Mitsuba 3 has no such texture"),
+        (Kind::Emitter, "sunsky" | "sun" | "sky") => Some("Mitsuba 3 has no sky model; an environment map image is the closest"),
         _ => None,
     }
 }

@@ -312,10 +312,6 @@ impl Parser {
         Ok(Some(name))
     }
 
-    fn id_attr(&self, file: &Arc<SourceFile>, node: &XNode) -> Result<Option<String>> {
-        self.attr(file, node, "id")
-    }
-
     /// `name` through this file's folders, then the working directory.
     fn resolve_here(&self, name: &str) -> Result<PathBuf, Vec<PathBuf>> {
         let p = Path::new(name);
@@ -436,7 +432,7 @@ impl Parser {
         if let Some(kind) = Kind::from_tag(tag).filter(|k| *k != Kind::Scene) {
             self.check_attrs(file, x, &["type", "id", "name"])?;
             let plugin = self.req_attr(file, x, "type")?;
-            let id = self.id_attr(file, x)?;
+            let id = self.attr(file, x, "id")?;
             let name = self.name_attr(file, x, out)?;
             let mut node = Node { kind, plugin, id, loc: loc.clone(), props: vec![], children: vec![] };
             self.parse_children(file, x, &mut node)?;
@@ -465,7 +461,7 @@ impl Parser {
             }
             "ref" => {
                 self.check_attrs(file, x, &["id", "name"])?;
-                let id = self.id_attr(file, x)?.ok_or_else(|| SceneError::at(&loc, "<ref> needs a \"id\" attribute"))?;
+                let id = self.req_attr(file, x, "id")?;
                 let name = self.name_attr(file, x, out)?;
                 out.children.push(Child { name, target: ChildTarget::Ref(id), loc });
             }
