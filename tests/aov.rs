@@ -349,3 +349,11 @@ fn cli_writes_aov_channels_and_rgba_png_at_a_forced_width() {
     assert_eq!(bad.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--width must be at least 1"));
 }
+
+#[test]
+fn film_accepts_mitsuba_06_banner_switch() {
+    let scene = load(&small_scene(r#"<boolean name="banner" value="false"/><string name="component_format" value="float32"/>"#, "box", ""));
+    assert_eq!(scene.film.pixel_format, PixelFormat::Rgb);
+    let e = load_error(&small_scene(r#"<string name="banner" value="no"/>"#, "box", ""));
+    assert!(e.contains("banner"), "{e}");
+}

@@ -9,7 +9,7 @@
 //! | `crop_offset_x`, `crop_offset_y` | integer | 0 | top-left pixel of the rendered window |
 //! | `crop_width`, `crop_height` | integer | width, height | size of the rendered window = size of the output image |
 //! | `pixel_format` | string | `rgb` | channels written: `rgb` (R,G,B), `rgba` (R,G,B,A), `luminance` (Y), `luminance_alpha` (Y,A), `xyz` (X,Y,Z), `xyza` (X,Y,Z,A) |
-//! | `component_format`, `file_format` | string | `float32`, `openexr` | accepted for compatibility |
+//! | `component_format`, `file_format`, `banner` | string, string, boolean | `float32`, `openexr`, false | accepted for compatibility |
 //! | (nested) | `rfilter` | `gaussian` | reconstruction filter |
 //!
 //! As in Mitsuba, a crop window renders only its pixels, with the camera

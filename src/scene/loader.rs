@@ -950,6 +950,8 @@ impl Loader {
         let crop_w = props.int_checked("crop_width", (width - crop_x) as i64, |v| v >= 1 && v <= (width - crop_x) as i64, &format!("between 1 and {} (width − crop_offset_x)", width - crop_x))? as u32;
         let crop_h = props.int_checked("crop_height", (height - crop_y) as i64, |v| v >= 1 && v <= (height - crop_y) as i64, &format!("between 1 and {} (height − crop_offset_y)", height - crop_y))? as u32;
         props.choice("component_format", "float32", &["float16", "float32"])?;
+        // Mitsuba 0.6's film banner switch, still in many scene files (Mitsuba 3 ignores it).
+        props.bool("banner", false)?;
         props.choice("file_format", "openexr", &["openexr", "exr"])?;
         let filters = self.nested(&props, Kind::Rfilter)?;
         let filter = match filters.as_slice() {
