@@ -198,7 +198,7 @@ fn twosided_rejects_transmitting_bsdfs() {
 fn unknown_plugin_of_every_kind() {
     let cases: &[(&str, &[&str])] = &[
         ("    <shape type=\"sphre\"/>\n", &["rectangle", "cube", "disk", "sphere", "obj", "ply"]),
-        ("    <emitter type=\"envmap\"/>\n", &["area", "point", "spot", "constant", "directional"]),
+        ("    <emitter type=\"sunsky\"/>\n", &["area", "point", "spot", "constant", "directional", "envmap", "projector"]),
         ("    <integrator type=\"volpath\"/>\n", &["direct", "path", "ptracer"]),
         ("    <texture type=\"noise\"/>\n", &["bitmap", "checkerboard"]),
     ];

@@ -323,4 +323,26 @@ mod pfm_tests {
         }
         let _ = std::fs::remove_dir_all(&dir);
     }
+
+    /// Radiance RGBE (`.hdr`) images are linear: no sRGB decoding.
+    #[test]
+    fn radiance_hdr_is_read_linear_top_row_first() {
+        let dir = std::env::temp_dir().join(format!("snell-hdr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // 2×2, flat (width < 8: no run-length encoding). RGBE value = m · 2^(e − 136).
+        let mut bytes = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 2\n".to_vec();
+        // Top row: 0.5 (m 128, e 128) and 2.0 (m 128, e 130); bottom: 1.0 and 0.25 in red only.
+        bytes.extend([128, 128, 128, 128, 128, 128, 128, 130, 128, 0, 0, 129, 128, 0, 0, 127]);
+        let path = dir.join("t.hdr");
+        std::fs::write(&path, &bytes).unwrap();
+        let (w, h, px) = read_image(&path, false).unwrap();
+        assert_eq!((w, h), (2, 2));
+        let expect = [[0.5, 0.5, 0.5], [2.0, 2.0, 2.0], [1.0, 0.0, 0.0], [0.25, 0.0, 0.0]];
+        for (p, e) in px.iter().zip(expect) {
+            for c in 0..3 {
+                assert!((p[c] - e[c]).abs() <= 0.01 * e[c] + 1e-6, "{px:?}");
+            }
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
