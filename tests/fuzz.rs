@@ -225,7 +225,7 @@ fn fuzz_scenes() {
         scene_case("scene", seed, case, &seeds[k], &bytes, &params, limit, &mut tally);
     }
     report("scene", seed, &tally);
-    assert!(tally.loaded > 0 && tally.errors > 0, "{tally:?}");
+    assert!(cases < 300 || (tally.loaded > 0 && tally.errors > 0), "{tally:?}");
 }
 
 /// A scene around a mesh or texture file: the mesh itself with a diffuse
@@ -281,7 +281,9 @@ fn file_cases(
         }
     }
     report(kind, seed, &tally);
-    assert!(tally.loaded > 0 && tally.errors > 0, "{tally:?}");
+    // The default run must exercise both outcomes; a small campaign batch
+    // may by chance break every input (e.g. 200 PLY mutations, none loads).
+    assert!(cases < 300 || (tally.loaded > 0 && tally.errors > 0), "{tally:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -10,7 +10,8 @@
 #   SEEDS=1000 START=5000 tools/fuzz.sh # more
 #   DURATION=600 tools/fuzz.sh          # stop starting batches after 10 minutes
 #
-# Environment: START (first seed), SEEDS (number of seeds), CASES (cases per
+# Environment: BIN (an already built harness, target/release/deps/fuzz-*,
+# instead of building it), START (first seed), SEEDS (number of seeds), CASES (cases per
 # kind and seed), CASE_SECONDS (per case, default 10), MEM_MB (virtual memory
 # per batch, default 4096), DURATION (seconds; 0 = no limit), OUT (folder for
 # logs of failing batches, default $TMPDIR/snell-fuzz-logs). Inputs that fail are saved
@@ -31,7 +32,10 @@ MEM_MB=${MEM_MB:-4096}
 DURATION=${DURATION:-0}
 OUT=${OUT:-${TMPDIR:-/tmp}/snell-fuzz-logs}
 
-bin=$(cargo test --release --test fuzz --no-run 2>&1 | sed -n 's/.*Executable tests\/fuzz.rs (\(.*\))/\1/p' | tail -n 1)
+bin=${BIN:-}
+if [ -z "$bin" ]; then
+    bin=$(cargo test --release --test fuzz --no-run 2>&1 | sed -n 's/.*Executable tests\/fuzz.rs (\(.*\))/\1/p' | tail -n 1)
+fi
 if [ -z "$bin" ] || [ ! -x "$bin" ]; then
     echo "fuzz.sh: cannot build the fuzz harness (cargo test --release --test fuzz --no-run)" >&2
     exit 1
@@ -55,6 +59,7 @@ for (( seed = START; seed < START + SEEDS; seed++ )); do
     ) >"$log" 2>&1
     status=$?
     batches=$(( batches + 1 ))
+    echo "seed $seed: exit $status" >> "$OUT/progress.log"
     while read -r kind n; do
         cases[$kind]=$(( ${cases[$kind]:-0} + n ))
     done < <(sed -n 's/^fuzz \([a-z]*\): seed [0-9]*: \([0-9]*\) cases.*/\1 \2/p' "$log")
