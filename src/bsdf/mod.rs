@@ -38,9 +38,12 @@ pub mod fresnel;
 pub mod ior;
 pub mod metal_spectra;
 pub mod metals;
+pub mod microfacet;
 pub mod plastic;
 pub mod polarizer;
 pub mod retarder;
+pub mod roughconductor;
+pub mod roughdielectric;
 pub mod thindielectric;
 pub mod twosided;
 
@@ -50,6 +53,8 @@ pub use diffuse::Diffuse;
 pub use plastic::Plastic;
 pub use polarizer::Polarizer;
 pub use retarder::Retarder;
+pub use roughconductor::RoughConductor;
+pub use roughdielectric::RoughDielectric;
 pub use thindielectric::ThinDielectric;
 pub use twosided::TwoSided;
 
@@ -201,6 +206,8 @@ pub enum Bsdf {
     Polarizer(Polarizer),
     Retarder(Retarder),
     TwoSided(TwoSided),
+    RoughConductor(RoughConductor),
+    RoughDielectric(RoughDielectric),
 }
 
 /// Static dispatch: `$b` is bound to the model inside each arm.
@@ -215,6 +222,8 @@ macro_rules! dispatch {
             Bsdf::Polarizer($b) => $e,
             Bsdf::Retarder($b) => $e,
             Bsdf::TwoSided($b) => $e,
+            Bsdf::RoughConductor($b) => $e,
+            Bsdf::RoughDielectric($b) => $e,
         }
     };
 }
@@ -231,6 +240,8 @@ impl Bsdf {
             Bsdf::Polarizer(_) => "polarizer",
             Bsdf::Retarder(_) => "retarder",
             Bsdf::TwoSided(_) => "twosided",
+            Bsdf::RoughConductor(_) => "roughconductor",
+            Bsdf::RoughDielectric(_) => "roughdielectric",
         }
     }
 

@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub const SHAPES: [&str; 6] = ["rectangle", "cube", "disk", "sphere", "obj", "ply"];
-pub const BSDFS: [&str; 8] = ["conductor", "dielectric", "diffuse", "plastic", "polarizer", "retarder", "thindielectric", "twosided"];
+pub const BSDFS: [&str; 10] = ["conductor", "dielectric", "diffuse", "plastic", "polarizer", "retarder", "roughconductor", "roughdielectric", "thindielectric", "twosided"];
 pub const TEXTURES: [&str; 2] = ["bitmap", "checkerboard"];
 pub const EMITTERS: [&str; 5] = ["area", "point", "spot", "constant", "directional"];
 pub const SENSORS: [&str; 2] = ["perspective", "orthographic"];
@@ -368,6 +368,8 @@ impl Loader {
             "thindielectric" => Bsdf::ThinDielectric(ThinDielectric::from_props(&props, self)?),
             "plastic" => Bsdf::Plastic(Plastic::from_props(&props, self)?),
             "twosided" => Bsdf::TwoSided(TwoSided::from_props(&props, self)?),
+            "roughconductor" => Bsdf::RoughConductor(crate::bsdf::RoughConductor::from_props(&props, self)?),
+            "roughdielectric" => Bsdf::RoughDielectric(crate::bsdf::RoughDielectric::from_props(&props, self)?),
             _ => return Err(unknown_plugin(node, &BSDFS)),
         };
         props.finish()?;
