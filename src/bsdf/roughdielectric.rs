@@ -490,4 +490,28 @@ mod tests {
         let dop = degree_of_polarization(Vec4::new(st[0][0], st[1][0], st[2][0], st[3][0]));
         assert!(dop > 0.95, "degree of polarization {dop}");
     }
+
+    #[test]
+    fn a_dispersive_index_refracts_each_hero_wavelength_its_own_way() {
+        use crate::spectrum::Spectrum;
+        use crate::spectrum::sampled::Sampled;
+        let ior = crate::bsdf::dispersion::parse_ior_expr("sellmeier:bk7").expect("a dispersive form").expect("parses");
+        let mut g = glass(MicrofacetType::Beckmann, 1.5, 0.001, None, true);
+        g.facet.dispersion = Some(Box::new(DispersiveInterface { int_ior: ior, ext_ior: crate::bsdf::dispersion::IorSpectrum::Constant(1.0) }));
+        let b = Bsdf::RoughDielectric(g);
+        assert!(b.disperses());
+        let si = dummy_interaction();
+        let wi = incident(1.0, 0.0);
+        let ctx = BsdfContext::RADIANCE.with_lobes(Lobe::GLOSSY_TRANSMISSION);
+        // Blue bends more than red: its refracted direction is nearer the normal.
+        let (mut cos, mut hero) = (vec![], vec![]);
+        for u in [0.05f32, 0.95] {
+            let wl = Sampled::sample_wavelengths(u);
+            let s = b.sample::<Sampled>(&ctx, &si, wi, 0.5, Vec2::new(0.4, 0.6), &wl).expect("refracts");
+            cos.push(-s.wo.z);
+            hero.push(Sampled::hero_wavelength(&wl).expect("a hero"));
+        }
+        assert!(hero[0] < hero[1], "{hero:?}");
+        assert!(cos[0] > cos[1] + 1e-4, "{cos:?} at {hero:?}");
+    }
 }
