@@ -63,3 +63,15 @@ fn thin_pane() {
 fn plastic() {
     check("tests/scenes/plastic.xml", "tests/references/plastic.exr");
 }
+
+// Issue 12: rough surfaces (roughconductor, roughdielectric).
+
+#[test]
+fn rough_metals() {
+    check("tests/scenes/rough-metals.xml", "tests/references/rough-metals.exr");
+}
+
+#[test]
+fn rough_glass() {
+    check_spp("tests/scenes/rough-glass.xml", "tests/references/rough-glass.exr", 32);
+}

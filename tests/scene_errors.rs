@@ -133,7 +133,7 @@ fn wrong_root_element_and_missing_version() {
 fn unknown_bsdf_plugin() {
     let e = load_err(&scene("    <bsdf type=\"difuse\"/>\n"));
     assert_error(&e, &scene_path(), 9, 5, "<bsdf type=\"difuse\"", "unknown bsdf plugin \"difuse\"");
-    assert_help(&e, &["conductor, dielectric, diffuse, plastic, polarizer, retarder, thindielectric, twosided"]);
+    assert_help(&e, &["conductor, dielectric, diffuse, plastic, polarizer, retarder, roughconductor, roughdielectric, thindielectric, twosided"]);
 }
 
 // ------------------------------------------------- specular material inputs
@@ -582,7 +582,7 @@ fn error_inside_an_included_file_points_into_that_file() {
     std::fs::write(&path, &text).unwrap();
     let e = snell::load_file(&path, &LoadOptions::default()).err().expect("should fail");
     assert_error(&e, &part, 2, 5, "<bsdf", "unknown bsdf plugin \"roughplastic\"");
-    assert_help(&e, &["diffuse, plastic, polarizer, retarder, thindielectric, twosided"]);
+    assert_help(&e, &["diffuse, plastic, polarizer, retarder, roughconductor, roughdielectric, thindielectric, twosided"]);
 
     // Malformed XML in the included file, too.
     std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"diffuse\">\n</scene>\n").unwrap();
@@ -797,4 +797,25 @@ fn byte_order_mark_and_crlf_do_not_shift_columns() {
 fn duplicated_attribute() {
     let e = load_err(&scene("    <shape type=\"sphere\">\n        <float name=\"radius\" value=\"1\" value=\"2\"/>\n    </shape>\n"));
     assert_error(&e, &scene_path(), 10, 40, "value=\"2\"", "malformed XML: attribute 'value'");
+}
+
+// ------------------------------------------------------- rough BSDFs (issue 12)
+
+#[test]
+fn rough_bsdf_parameter_errors_are_located() {
+    // An unknown distribution lists the two there are.
+    let e = load_err(&scene("    <bsdf type=\"roughconductor\">\n        <string name=\"distribution\" value=\"phong\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<string name=\"distribution\"", "distribution");
+    assert_help(&e, &["beckmann, ggx"]);
+    // alpha together with alpha_u/alpha_v.
+    let e = load_err(&scene(
+        "    <bsdf type=\"roughdielectric\">\n        <float name=\"alpha\" value=\"0.1\"/>\n        <float name=\"alpha_u\" value=\"0.1\"/>\n        <float name=\"alpha_v\" value=\"0.2\"/>\n    </bsdf>\n",
+    ));
+    assert_error(&e, &scene_path(), 10, 9, "<float name=\"alpha\"", "not both");
+    // alpha_u without alpha_v.
+    let e = load_err(&scene("    <bsdf type=\"roughconductor\">\n        <float name=\"alpha_u\" value=\"0.1\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 9, 5, "<bsdf", "\"alpha_v\" is missing");
+    // A negative roughness.
+    let e = load_err(&scene("    <bsdf type=\"roughconductor\">\n        <float name=\"alpha\" value=\"-0.1\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<float name=\"alpha\"", "non-negative");
 }

@@ -96,6 +96,33 @@ impl Conductor {
         let (eta, k) = self.index::<S>(wl);
         eta.zip_map(k, |e, k| fresnel_conductor(cos_i, e, k))
     }
+
+    /// The Fresnel reflection per channel as a Mueller matrix (polarized
+    /// modes): incidence cosine `cos_i` on a mirror of world normal `n`,
+    /// light arriving along `incident` and leaving along `outgoing` (world),
+    /// in the canonical Stokes frames of those directions.
+    #[inline]
+    pub fn fresnel_mueller<S: Spectrum>(&self, cos_i: f32, n: Vec3, incident: Vec3, outgoing: Vec3, wl: &S::Wavelengths) -> S {
+        let (eta, k) = self.index::<S>(wl);
+        let (eta, k) = (eta.channels(), k.channels());
+        // The s/p matrix is linear in its four parameters, and so is the
+        // change to canonical frames: rotate the four unit matrices once,
+        // then combine them with each channel's parameters.
+        let unit = |i: usize| {
+            let mut p = [0.0; 4];
+            p[i] = 1.0;
+            interface_to_canonical(interface_from_parameters(p), n, incident, outgoing)
+        };
+        let basis = [unit(0), unit(1), unit(2), unit(3)];
+        let params = [0, 1, 2, 3].map(|i| eta.zip_map(k, |e, kk| conductor_parameters(cos_i, e, kk)[i]));
+        S::mueller_channels(|r, c| {
+            let mut v = params[0] * basis[0].col(c)[r];
+            for i in 1..4 {
+                v += params[i] * basis[i].col(c)[r];
+            }
+            v
+        })
+    }
 }
 
 impl BsdfModel for Conductor {
@@ -125,29 +152,9 @@ impl BsdfModel for Conductor {
         let wo = reflect(wi);
         let scale = self.specular_reflectance.eval_spectrum::<S>(si.uv, wl);
         let weight = if S::POLARIZED {
-            // The Fresnel matrix of the complex index, per channel, in the
-            // canonical frames of the incident (along −wo) and outgoing (along
-            // wi) light.
-            let (eta, k) = self.index::<S>(wl);
-            let (eta, k) = (eta.channels(), k.channels());
-            let (n, incident, outgoing) = (si.frame.n, -si.to_world(wo), si.to_world(wi));
-            // The s/p matrix is linear in its four parameters, and so is the
-            // change to canonical frames: rotate the four unit matrices once,
-            // then combine them with each channel's parameters.
-            let unit = |i: usize| {
-                let mut p = [0.0; 4];
-                p[i] = 1.0;
-                interface_to_canonical(interface_from_parameters(p), n, incident, outgoing)
-            };
-            let basis = [unit(0), unit(1), unit(2), unit(3)];
-            let params = [0, 1, 2, 3].map(|i| eta.zip_map(k, |e, kk| conductor_parameters(wo.z, e, kk)[i]));
-            S::mueller_channels(|r, c| {
-                let mut v = params[0] * basis[0].col(c)[r];
-                for i in 1..4 {
-                    v += params[i] * basis[i].col(c)[r];
-                }
-                v
-            }) * scale
+            // The Fresnel matrix in the canonical frames of the incident
+            // (along −wo) and outgoing (along wi) light.
+            self.fresnel_mueller::<S>(wo.z, si.frame.n, -si.to_world(wo), si.to_world(wi), wl) * scale
         } else {
             self.fresnel::<S>(wi.z, wl) * scale
         };

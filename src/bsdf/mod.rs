@@ -41,11 +41,14 @@ pub mod ior;
 pub mod metal_spectra;
 pub mod mask;
 pub mod metals;
+pub mod microfacet;
 pub mod normalmap;
 pub mod null;
 pub mod plastic;
 pub mod polarizer;
 pub mod retarder;
+pub mod roughconductor;
+pub mod roughdielectric;
 pub mod thindielectric;
 pub mod twosided;
 
@@ -60,6 +63,8 @@ pub use diffuse::Diffuse;
 pub use plastic::Plastic;
 pub use polarizer::Polarizer;
 pub use retarder::Retarder;
+pub use roughconductor::RoughConductor;
+pub use roughdielectric::RoughDielectric;
 pub use thindielectric::ThinDielectric;
 pub use twosided::TwoSided;
 
@@ -219,6 +224,8 @@ pub enum Bsdf {
     BlendBsdf(BlendBsdf),
     NormalMap(NormalMap),
     BumpMap(BumpMap),
+    RoughConductor(RoughConductor),
+    RoughDielectric(RoughDielectric),
 }
 
 /// Static dispatch: `$b` is bound to the model inside each arm.
@@ -238,6 +245,8 @@ macro_rules! dispatch {
             Bsdf::BlendBsdf($b) => $e,
             Bsdf::NormalMap($b) => $e,
             Bsdf::BumpMap($b) => $e,
+            Bsdf::RoughConductor($b) => $e,
+            Bsdf::RoughDielectric($b) => $e,
         }
     };
 }
@@ -259,6 +268,8 @@ impl Bsdf {
             Bsdf::BlendBsdf(_) => "blendbsdf",
             Bsdf::NormalMap(_) => "normalmap",
             Bsdf::BumpMap(_) => "bumpmap",
+            Bsdf::RoughConductor(_) => "roughconductor",
+            Bsdf::RoughDielectric(_) => "roughdielectric",
         }
     }
 

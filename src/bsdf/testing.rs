@@ -102,6 +102,12 @@ pub(crate) fn gamma_p(a: f64, x: f64) -> f64 {
 /// over a θ×φ grid of the whole sphere. Fails when the histogram of samples
 /// is implausible under the pdf at significance 1 %.
 pub fn chi2_test(bsdf: &Bsdf, wi: Vec3, seed: u64) {
+    chi2_test_at(bsdf, wi, seed, 0.01)
+}
+
+/// As [`chi2_test`] at significance `significance` (a family of k tests
+/// at 1 % overall each runs at 0.01/k, Bonferroni's correction).
+pub fn chi2_test_at(bsdf: &Bsdf, wi: Vec3, seed: u64, significance: f64) {
     const THETA: usize = 10;
     const PHI: usize = 20;
     const N: usize = 500_000;
@@ -130,21 +136,25 @@ pub fn chi2_test(bsdf: &Bsdf, wi: Vec3, seed: u64) {
             valid += 1;
         }
     }
-    // Expected counts: integrate the pdf over each bin (midpoint rule, 12×12 per bin).
+    // Expected counts: integrate the pdf over each bin (midpoint rule, 32 θ
+    // × 128 φ points per bin: fine enough for glossy lobes a few degrees
+    // wide, and for the thin arcs along the horizon that grazing reflection
+    // makes of them).
     let mut expected = vec![0.0f64; THETA * PHI];
-    const SUB: usize = 12;
+    const SUB: usize = 32;
+    const SUB_PHI: usize = 128;
     for ti in 0..THETA {
         for pi in 0..PHI {
             let mut sum = 0.0f64;
             for a in 0..SUB {
-                for b in 0..SUB {
+                for b in 0..SUB_PHI {
                     let theta = (ti as f64 + (a as f64 + 0.5) / SUB as f64) * std::f64::consts::PI / THETA as f64;
-                    let phi = (pi as f64 + (b as f64 + 0.5) / SUB as f64) * 2.0 * std::f64::consts::PI / PHI as f64;
+                    let phi = (pi as f64 + (b as f64 + 0.5) / SUB_PHI as f64) * 2.0 * std::f64::consts::PI / PHI as f64;
                     let wo = incident(theta as f32, phi as f32);
                     sum += bsdf.pdf::<Rgb>(&BsdfContext::RADIANCE, &si, wi, wo, &()) as f64 * theta.sin();
                 }
             }
-            let d_area = (std::f64::consts::PI / THETA as f64) * (2.0 * std::f64::consts::PI / PHI as f64) / (SUB * SUB) as f64;
+            let d_area = (std::f64::consts::PI / THETA as f64) * (2.0 * std::f64::consts::PI / PHI as f64) / (SUB * SUB_PHI) as f64;
             expected[ti * PHI + pi] = sum * d_area * N as f64;
         }
     }
@@ -183,7 +193,129 @@ pub fn chi2_test(bsdf: &Bsdf, wi: Vec3, seed: u64) {
         valid,
         N
     );
-    assert!(p_value > 0.01, "χ² test rejected the sampling routine: χ²={chsq:.1}, dof={dof}, p={p_value:.2e}");
+    if p_value <= significance {
+        for i in 0..expected.len() {
+            if expected[i] > 100.0 || observed[i] > 100.0 {
+                eprintln!("bin θ{} φ{}: observed {} expected {:.1}", i / PHI, i % PHI, observed[i], expected[i]);
+            }
+        }
+    }
+    assert!(p_value > significance, "χ² test rejected the sampling routine: χ²={chsq:.1}, dof={dof}, p={p_value:.2e} (wi {wi})");
+}
+
+/// χ² test of a direction sampler against its density `pdf` (solid
+/// angle): θ bins are dense over the polar cap θ < `cap` (where narrow
+/// lobes put their samples) and coarse beyond it, down to the south pole.
+/// Fails when the histogram is implausible at significance `significance`,
+/// or when the pdf does not integrate to the fraction of valid samples.
+pub fn chi2_directions(mut sample: impl FnMut() -> Option<Vec3>, pdf: impl Fn(Vec3) -> f64, cap: f32, significance: f64) {
+    const INNER: usize = 10;
+    const OUTER: usize = 6;
+    const PHI: usize = 16;
+    const N: usize = 100_000;
+    let cap = cap as f64;
+    let pi = std::f64::consts::PI;
+    let edge = |t: usize| if t <= INNER { cap * t as f64 / INNER as f64 } else { cap + (pi - cap) * (t - INNER) as f64 / OUTER as f64 };
+    let bin_of = |v: Vec3| -> usize {
+        let theta = (v.z.clamp(-1.0, 1.0) as f64).acos();
+        let t = if theta < cap {
+            ((theta / cap) * INNER as f64) as usize
+        } else {
+            INNER + (((theta - cap) / (pi - cap)) * OUTER as f64) as usize
+        };
+        let mut phi = (v.y as f64).atan2(v.x as f64);
+        if phi < 0.0 {
+            phi += 2.0 * pi;
+        }
+        let p = ((phi / (2.0 * pi)) * PHI as f64) as usize;
+        t.min(INNER + OUTER - 1) * PHI + p.min(PHI - 1)
+    };
+    let mut observed = vec![0.0f64; (INNER + OUTER) * PHI];
+    let mut valid = 0usize;
+    for _ in 0..N {
+        if let Some(v) = sample() {
+            assert!((v.length() - 1.0).abs() < 1e-3, "sampled direction is not unit length");
+            observed[bin_of(v)] += 1.0;
+            valid += 1;
+        }
+    }
+    let mut expected = vec![0.0f64; (INNER + OUTER) * PHI];
+    const ST: usize = 32;
+    const SP: usize = 8;
+    for t in 0..INNER + OUTER {
+        let (t0, t1) = (edge(t), edge(t + 1));
+        for p in 0..PHI {
+            let mut sum = 0.0;
+            for a in 0..ST {
+                let theta = t0 + (t1 - t0) * (a as f64 + 0.5) / ST as f64;
+                for b in 0..SP {
+                    let phi = (p as f64 + (b as f64 + 0.5) / SP as f64) * 2.0 * pi / PHI as f64;
+                    sum += pdf(incident(theta as f32, phi as f32)) * theta.sin();
+                }
+            }
+            expected[t * PHI + p] = sum * (t1 - t0) / ST as f64 * (2.0 * pi / PHI as f64) / SP as f64 * N as f64;
+        }
+    }
+    chi2_verdict(&observed, &expected, valid, N, significance);
+}
+
+/// Pools bins of small expectation, then rejects at `significance`.
+fn chi2_verdict(observed: &[f64], expected: &[f64], valid: usize, n: usize, significance: f64) {
+    let mut order: Vec<usize> = (0..expected.len()).collect();
+    order.sort_by(|&a, &b| expected[a].total_cmp(&expected[b]));
+    let (mut chsq, mut dof) = (0.0f64, 0i32);
+    let (mut pool_e, mut pool_o) = (0.0, 0.0);
+    for &i in &order {
+        if expected[i] == 0.0 {
+            assert!(observed[i] < 1e-3 * n as f64 + 1.0, "{} samples fell where the pdf is zero", observed[i]);
+            continue;
+        }
+        if expected[i] < 5.0 {
+            pool_e += expected[i];
+            pool_o += observed[i];
+            continue;
+        }
+        let diff = observed[i] - expected[i];
+        chsq += diff * diff / expected[i];
+        dof += 1;
+    }
+    if pool_e > 0.0 {
+        let diff = pool_o - pool_e;
+        chsq += diff * diff / pool_e;
+        dof += 1;
+    }
+    dof -= 1;
+    let total_expected: f64 = expected.iter().sum();
+    assert!(
+        (total_expected - valid as f64).abs() < 0.02 * n as f64,
+        "pdf integrates to {} but {} of {} samples were valid",
+        total_expected / n as f64,
+        valid,
+        n
+    );
+    if dof <= 0 {
+        // Everything in one bin (a lobe narrower than a bin): nothing to test
+        // beyond the total.
+        return;
+    }
+    let p_value = 1.0 - gamma_p(dof as f64 / 2.0, chsq / 2.0);
+    assert!(p_value > significance, "χ² test rejected the sampling routine: χ²={chsq:.1}, dof={dof}, p={p_value:.2e}");
+}
+
+/// Directional albedo by sampling the BSDF: the mean sample weight
+/// (delta lobes included).
+pub fn estimate_albedo_sampled(bsdf: &Bsdf, wi: Vec3, n: usize, seed: u64) -> [f32; 3] {
+    let si = SurfaceInteraction { wi, ..dummy_interaction() };
+    let mut rng = Pcg32::new(seed, 13);
+    let mut sum = [0.0f64; 3];
+    for _ in 0..n {
+        if let Some(s) = bsdf.sample::<Rgb>(&BsdfContext::RADIANCE, &si, wi, rng.next_f32(), Vec2::new(rng.next_f32(), rng.next_f32()), &()) {
+            for c in 0..3 {
+                sum[c] += s.weight[c] as f64;
+            }
+        }
+    }
+    sum.map(|s| (s / n as f64) as f32)
 }
 
 /// f(wi, wo) = f(wo, wi) for random direction pairs (eval includes |cos θ_o|,
@@ -258,7 +390,7 @@ pub fn check_sample_consistency_ctx(bsdf: &Bsdf, ctx: &BsdfContext, wi: Vec3, se
         let f: Rgb = bsdf.eval(ctx, &si, wi, s.wo, &());
         for c in 0..3 {
             let w = f[c] / pdf;
-            assert!((w - s.weight[c]).abs() <= 1e-3 * (1.0 + w), "weight {} vs eval/pdf {w}", s.weight[c]);
+            assert!((w - s.weight[c]).abs() <= 1e-3 * (1.0 + w), "weight {} vs eval/pdf {w} ({ctx:?}, wi {wi}, wo {}, {:?})", s.weight[c], s.wo, s.lobe);
         }
         assert!(s.weight.is_finite());
     }

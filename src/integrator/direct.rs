@@ -61,6 +61,11 @@ impl Direct {
         let (ne, nb) = (self.emitter_samples as f32, self.bsdf_samples as f32);
         let total = ne + nb;
 
+        // A dispersive interface sends each wavelength its own way: past a
+        // rough one (emitter samples too) and in BSDF samples, the hero's alone.
+        if bsdf.disperses() && (self.bsdf_samples > 0 || bsdf.lobes().intersects(Lobe::SMOOTH)) {
+            S::terminate_secondary(wl);
+        }
         if bsdf.lobes().intersects(Lobe::SMOOTH) {
             for _ in 0..self.emitter_samples {
                 let Some(es) = scene.sample_emitter::<S>(&si, sampler.next_2d(), wl) else { continue };
@@ -78,11 +83,6 @@ impl Direct {
             }
         }
 
-        // A dispersive interface sends each wavelength its own way: BSDF
-        // samples are the hero's alone.
-        if self.bsdf_samples > 0 && bsdf.disperses() {
-            S::terminate_secondary(wl);
-        }
         for _ in 0..self.bsdf_samples {
             let Some(bs) = bsdf.sample::<S>(&BsdfContext::RADIANCE, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { continue };
             let d = si.to_world(bs.wo);

@@ -67,6 +67,13 @@ impl PathTracer {
             }
             let bsdf = scene.bsdf(&si);
 
+            // Past a dispersive interface the direction (and, for a rough
+            // one, the value of emitter samples) holds for the hero
+            // wavelength only.
+            if bsdf.disperses() {
+                S::terminate_secondary(wl);
+            }
+
             // Next-event estimation.
             if bsdf.lobes().intersects(Lobe::SMOOTH) {
                 if let Some(es) = scene.sample_emitter::<S>(&si, sampler.next_2d(), wl) {
@@ -79,11 +86,7 @@ impl PathTracer {
                 }
             }
 
-            // Continue the path by sampling the BSDF. Past a dispersive
-            // interface the direction holds for the hero wavelength only.
-            if bsdf.disperses() {
-                S::terminate_secondary(wl);
-            }
+            // Continue the path by sampling the BSDF.
             let Some(bs) = bsdf.sample::<S>(&BsdfContext::RADIANCE, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
             let d = si.to_world(bs.wo);
             throughput *= bs.weight;

@@ -86,6 +86,11 @@ impl ParticleTracer {
                 break;
             }
             let bsdf = scene.bsdf(&si);
+            // Past a dispersive interface the direction (and a rough one's
+            // connection to the camera) holds for the hero wavelength only.
+            if bsdf.disperses() {
+                S::terminate_secondary(wl);
+            }
             if bsdf.lobes().intersects(Lobe::SMOOTH) {
                 if let Some(c) = camera.connect(si.p, width, height) {
                     let wo = si.to_local(c.d);
@@ -100,9 +105,6 @@ impl ParticleTracer {
             }
             if segments.saturating_add(2) > self.max_depth {
                 break;
-            }
-            if bsdf.disperses() {
-                S::terminate_secondary(wl);
             }
             let Some(bs) = bsdf.sample::<S>(&BsdfContext::IMPORTANCE, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
             let correction = shading_correction(&si, si.wi, bs.wo);

@@ -32,8 +32,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub const SHAPES: [&str; 10] = ["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "shapegroup", "instance"];
-pub const BSDFS: [&str; 13] = [
-    "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer", "retarder", "thindielectric", "twosided",
+pub const BSDFS: [&str; 15] = [
+    "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer", "retarder",
+    "roughconductor", "roughdielectric", "thindielectric", "twosided",
 ];
 pub const TEXTURES: [&str; 3] = ["bitmap", "checkerboard", "mesh_attribute"];
 pub const EMITTERS: [&str; 7] = ["area", "point", "spot", "constant", "directional", "envmap", "projector"];
@@ -646,6 +647,8 @@ impl Loader {
             "blendbsdf" => Bsdf::BlendBsdf(BlendBsdf::from_props(&props, self)?),
             "normalmap" => Bsdf::NormalMap(NormalMap::from_props(&props, self)?),
             "bumpmap" => Bsdf::BumpMap(BumpMap::from_props(&props, self)?),
+            "roughconductor" => Bsdf::RoughConductor(crate::bsdf::RoughConductor::from_props(&props, self)?),
+            "roughdielectric" => Bsdf::RoughDielectric(crate::bsdf::RoughDielectric::from_props(&props, self)?),
             _ => return Err(unknown_plugin(node, &BSDFS)),
         };
         props.finish()?;
