@@ -467,3 +467,16 @@ fn face_attributes_are_constant_per_face_and_scaled() {
     let text = attribute_furnace(&dir, ply, "color", 1.0);
     assert_located(&load_err(&dir.join("scene.xml"), &text), &text, line_of(&text, "value=\"color\""), &["\"vertex_\" or \"face_\""]);
 }
+
+/// `<ref name="bsdf" id="…"/>` inside a shape, as Mitsuba's documentation
+/// scenes (e.g. `docs/scenes/include/shape_scene.xml`) write it.
+#[test]
+fn named_bsdf_reference_in_a_shape() {
+    let path = std::env::temp_dir().join("snell-named-ref.xml");
+    let text = scene("    <bsdf type=\"conductor\" id=\"metal\"/>\n    <shape type=\"cylinder\">\n        <ref name=\"bsdf\" id=\"metal\"/>\n    </shape>\n");
+    let s = load(&path, &text).unwrap_or_else(|e| panic!("{e}"));
+    assert!(matches!(s.bsdfs[s.shapes[0].bsdf as usize], snell::bsdf::Bsdf::Conductor(_)));
+    let text = scene("    <bsdf type=\"conductor\" id=\"metal\"/>\n    <shape type=\"cylinder\">\n        <ref name=\"bsdf\" id=\"metal\"/>\n        <bsdf type=\"diffuse\"/>\n    </shape>\n");
+    // Located, as for an unnamed reference, at the second BSDF's definition.
+    assert_located(&load_err(&path, &text), &text, line_of(&text, "id=\"metal\"/>"), &["at most one BSDF"]);
+}

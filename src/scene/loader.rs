@@ -279,7 +279,10 @@ impl Loader {
 
         let mut bsdf_nodes = self.nested(&props, Kind::Bsdf)?;
         let mut emitter_nodes = self.nested(&props, Kind::Emitter)?;
-        for r in props.unnamed_refs() {
+        // `<ref name="bsdf" id="…"/>` (as Blender's exporter and Mitsuba's
+        // own scenes write it) is the same as an unnamed reference.
+        let named_refs = ["bsdf", "emitter"].into_iter().filter_map(|n| props.child_named(n)).filter(|c| matches!(c.target, ChildTarget::Ref(_)));
+        for r in props.unnamed_refs().into_iter().chain(named_refs.collect::<Vec<_>>()) {
             let target = self.resolve(r)?;
             match target.kind {
                 Kind::Bsdf => bsdf_nodes.push(target),
