@@ -466,7 +466,9 @@ impl Loader {
             })
         };
         // tobj applied Mitsuba's default flip already; undo it if asked.
-        let uvs = raw.uvs.map(|uvs| if flip_tex { uvs } else { uvs.into_iter().map(|uv| glam::Vec2::new(uv.x, 1.0 - uv.y)).collect() });
+        // PLY and serialized texture coordinates are used as stored (as Mitsuba does).
+        let undo_flip = node.plugin == "obj" && !flip_tex;
+        let uvs = raw.uvs.map(|uvs| if !undo_flip { uvs } else { uvs.into_iter().map(|uv| glam::Vec2::new(uv.x, 1.0 - uv.y)).collect() });
         let attributes = raw.attributes.iter().map(|(n, a)| (n.clone(), Arc::new(a.to_corners(&raw.triangles)))).collect();
         let mut mesh = Mesh::new(positions, normals, uvs, raw.triangles, flip);
         mesh.attributes = attributes;
