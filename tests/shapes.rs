@@ -467,3 +467,39 @@ fn face_attributes_are_constant_per_face_and_scaled() {
     let text = attribute_furnace(&dir, ply, "color", 1.0);
     assert_located(&load_err(&dir.join("scene.xml"), &text), &text, line_of(&text, "value=\"color\""), &["\"vertex_\" or \"face_\""]);
 }
+
+/// `<ref name="bsdf" id="…"/>` inside a shape, as Mitsuba's documentation
+/// scenes (e.g. `docs/scenes/include/shape_scene.xml`) write it.
+#[test]
+fn named_bsdf_reference_in_a_shape() {
+    let path = std::env::temp_dir().join("snell-named-ref.xml");
+    let text = scene("    <bsdf type=\"conductor\" id=\"metal\"/>\n    <shape type=\"cylinder\">\n        <ref name=\"bsdf\" id=\"metal\"/>\n    </shape>\n");
+    let s = load(&path, &text).unwrap_or_else(|e| panic!("{e}"));
+    assert!(matches!(s.bsdfs[s.shapes[0].bsdf as usize], snell::bsdf::Bsdf::Conductor(_)));
+    let text = scene("    <bsdf type=\"conductor\" id=\"metal\"/>\n    <shape type=\"cylinder\">\n        <ref name=\"bsdf\" id=\"metal\"/>\n        <bsdf type=\"diffuse\"/>\n    </shape>\n");
+    // Located, as for an unnamed reference, at the second BSDF's definition.
+    assert_located(&load_err(&path, &text), &text, line_of(&text, "id=\"metal\"/>"), &["at most one BSDF"]);
+}
+
+/// PLY and serialized texture coordinates are used as stored (Mitsuba 3.9
+/// reads `u v` = (0.1, 0.2) as uv (0.1, 0.2), checked with its Python
+/// bindings); only OBJ flips v (`flip_tex_coords`, default true).
+#[test]
+fn ply_and_serialized_uvs_are_not_flipped() {
+    let dir = temp_dir("uvs");
+    let mesh = bumpy_grid(2);
+    write_ply(&dir.join("grid.ply"), &mesh);
+    std::fs::write(dir.join("grid.serialized"), serialized::write(&[(&mesh, None)])).unwrap();
+    std::fs::write(dir.join("grid.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0.1 0.2\nvt 0.3 0.4\nvt 0.5 0.6\nf 1/1 2/2 3/3\n").unwrap();
+    for (plugin, file) in [("ply", "grid.ply"), ("serialized", "grid.serialized")] {
+        let text = scene(&format!("    <shape type=\"{plugin}\"><string name=\"filename\" value=\"{file}\"/></shape>\n"));
+        let s = load(&dir.join("scene.xml"), &text).unwrap_or_else(|e| panic!("{e}"));
+        let snell::geometry::ShapeGeometry::Mesh(m) = &s.shapes[0].geometry else { panic!("not a mesh") };
+        assert_eq!(m.uvs.as_ref(), mesh.uvs.as_ref(), "{plugin}");
+    }
+    let text = scene("    <shape type=\"obj\"><string name=\"filename\" value=\"grid.obj\"/></shape>\n");
+    let s = load(&dir.join("scene.xml"), &text).unwrap_or_else(|e| panic!("{e}"));
+    let snell::geometry::ShapeGeometry::Mesh(m) = &s.shapes[0].geometry else { panic!("not a mesh") };
+    let uv0 = m.uvs.as_ref().unwrap()[m.positions.iter().position(|p| *p == Vec3::ZERO).unwrap()];
+    assert!((uv0 - Vec2::new(0.1, 0.8)).length() < 1e-6, "OBJ v is flipped by default: {uv0}");
+}

@@ -425,7 +425,10 @@ impl Loader {
 
         let mut bsdf_nodes = self.nested(&props, Kind::Bsdf)?;
         let mut emitter_nodes = self.nested(&props, Kind::Emitter)?;
-        for r in props.unnamed_refs() {
+        // `<ref name="bsdf" id="…"/>` (as Blender's exporter and Mitsuba's
+        // own scenes write it) is the same as an unnamed reference.
+        let named_refs = ["bsdf", "emitter"].into_iter().filter_map(|n| props.child_named(n)).filter(|c| matches!(c.target, ChildTarget::Ref(_)));
+        for r in props.unnamed_refs().into_iter().chain(named_refs.collect::<Vec<_>>()) {
             let target = self.resolve(r)?;
             match target.kind {
                 Kind::Bsdf => bsdf_nodes.push(target),
@@ -610,7 +613,9 @@ impl Loader {
             })
         };
         // The OBJ reader applied Mitsuba's default flip already; undo it if asked.
-        let uvs = raw.uvs.map(|uvs| if flip_tex { uvs } else { uvs.into_iter().map(|uv| glam::Vec2::new(uv.x, 1.0 - uv.y)).collect() });
+        // PLY and serialized texture coordinates are used as stored (as Mitsuba does).
+        let undo_flip = node.plugin == "obj" && !flip_tex;
+        let uvs = raw.uvs.map(|uvs| if !undo_flip { uvs } else { uvs.into_iter().map(|uv| glam::Vec2::new(uv.x, 1.0 - uv.y)).collect() });
         let attributes = raw.attributes.iter().map(|(n, a)| (n.clone(), Arc::new(a.to_corners(&raw.triangles)))).collect();
         let mut mesh = Mesh::new(positions, normals, uvs, raw.triangles, flip);
         mesh.attributes = attributes;
