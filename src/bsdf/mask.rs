@@ -16,6 +16,14 @@
 //! α times the nested ones, and `sample` picks the straight-through delta
 //! lobe (weight 1) with probability 1 − α.
 //!
+//! Mitsuba 3.9.1's `path` handles the null lobe only by BSDF sampling: its
+//! shadow rays stop at a mask (its documentation recommends `volpath` for
+//! masks). Under area lights and environments both estimate the same image
+//! (the leaf test against Mitsuba's `path` checks it), Snell's with far less
+//! noise; light from a point, spot or directional emitter seen through the
+//! holes reaches the surface behind in Snell but not in Mitsuba's `path`.
+//! Passing a mask does not count as a bounce (Mitsuba's `path` counts one).
+//!
 //! ```xml
 //! <bsdf type="mask">
 //!     <texture type="bitmap" name="opacity">
