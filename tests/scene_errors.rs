@@ -133,7 +133,7 @@ fn wrong_root_element_and_missing_version() {
 fn unknown_bsdf_plugin() {
     let e = load_err(&scene("    <bsdf type=\"difuse\"/>\n"));
     assert_error(&e, &scene_path(), 9, 5, "<bsdf type=\"difuse\"", "unknown bsdf plugin \"difuse\"");
-    assert_help(&e, &["conductor, dielectric, diffuse, plastic, polarizer, retarder, roughconductor, roughdielectric, thindielectric, twosided"]);
+    assert_help(&e, &["conductor, dielectric, diffuse, plastic, polarizer, retarder, roughconductor, roughdielectric, roughplastic, thindielectric, twosided"]);
 }
 
 // ------------------------------------------------- specular material inputs
@@ -577,12 +577,12 @@ fn error_inside_an_included_file_points_into_that_file() {
     let dir = temp_dir("include-bad");
     let path = dir.join("scene.xml");
     let part = dir.join("part.xml");
-    std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"roughplastic\"/>\n</scene>\n").unwrap();
+    std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"hair\"/>\n</scene>\n").unwrap();
     let text = scene("    <include filename=\"part.xml\"/>\n");
     std::fs::write(&path, &text).unwrap();
     let e = snell::load_file(&path, &LoadOptions::default()).err().expect("should fail");
-    assert_error(&e, &part, 2, 5, "<bsdf", "unknown bsdf plugin \"roughplastic\"");
-    assert_help(&e, &["diffuse, plastic, polarizer, retarder, roughconductor, roughdielectric, thindielectric, twosided"]);
+    assert_error(&e, &part, 2, 5, "<bsdf", "unknown bsdf plugin \"hair\"");
+    assert_help(&e, &["diffuse, plastic, polarizer, retarder, roughconductor, roughdielectric, roughplastic, thindielectric, twosided"]);
 
     // Malformed XML in the included file, too.
     std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"diffuse\">\n</scene>\n").unwrap();
