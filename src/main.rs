@@ -247,7 +247,7 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     if polarized {
         if let Some(b) = scene.bsdfs.iter().find(|b| !b.has_mueller_model()) {
             anyhow::bail!(
-                "{}: the polarized modes support diffuse, dielectric, thindielectric, conductor, plastic, polarizer, retarder, roughconductor and roughdielectric BSDFs (and twosided of them); this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
+                "{}: the polarized modes support diffuse, dielectric, thindielectric, conductor, plastic, polarizer, retarder, roughconductor, roughdielectric and roughplastic BSDFs (and twosided of them); this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
                 args.scene.display(),
                 b.plugin()
             );

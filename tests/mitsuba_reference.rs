@@ -64,7 +64,7 @@ fn plastic() {
     check("tests/scenes/plastic.xml", "tests/references/plastic.exr");
 }
 
-// Issue 12: rough surfaces (roughconductor, roughdielectric).
+// Issue 12: rough surfaces (roughconductor, roughdielectric, roughplastic).
 
 #[test]
 fn rough_metals() {
@@ -74,4 +74,9 @@ fn rough_metals() {
 #[test]
 fn rough_glass() {
     check_spp("tests/scenes/rough-glass.xml", "tests/references/rough-glass.exr", 32);
+}
+
+#[test]
+fn rough_plastic() {
+    check("tests/scenes/rough-plastic.xml", "tests/references/rough-plastic.exr");
 }

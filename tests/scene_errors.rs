@@ -133,7 +133,7 @@ fn wrong_root_element_and_missing_version() {
 fn unknown_bsdf_plugin() {
     let e = load_err(&scene("    <bsdf type=\"difuse\"/>\n"));
     assert_error(&e, &scene_path(), 9, 5, "<bsdf type=\"difuse\"", "unknown bsdf plugin \"difuse\"");
-    assert_help(&e, &["blendbsdf, bumpmap, conductor, dielectric, diffuse, mask, normalmap, null, plastic, polarizer, retarder, roughconductor, roughdielectric, thindielectric, twosided"]);
+    assert_help(&e, &["blendbsdf, bumpmap, conductor, dielectric, diffuse, mask, normalmap, null, plastic, polarizer, retarder, roughconductor, roughdielectric, roughplastic, thindielectric, twosided"]);
 }
 
 // ------------------------------------------------- specular material inputs
@@ -577,12 +577,12 @@ fn error_inside_an_included_file_points_into_that_file() {
     let dir = temp_dir("include-bad");
     let path = dir.join("scene.xml");
     let part = dir.join("part.xml");
-    std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"roughplastic\"/>\n</scene>\n").unwrap();
+    std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"hair\"/>\n</scene>\n").unwrap();
     let text = scene("    <include filename=\"part.xml\"/>\n");
     std::fs::write(&path, &text).unwrap();
     let e = snell::load_file(&path, &LoadOptions::default()).err().expect("should fail");
-    assert_error(&e, &part, 2, 5, "<bsdf", "unknown bsdf plugin \"roughplastic\"");
-    assert_help(&e, &["diffuse, mask, normalmap, null, plastic, polarizer, retarder, roughconductor, roughdielectric, thindielectric, twosided"]);
+    assert_error(&e, &part, 2, 5, "<bsdf", "unknown bsdf plugin \"hair\"");
+    assert_help(&e, &["diffuse, mask, normalmap, null, plastic, polarizer, retarder, roughconductor, roughdielectric, roughplastic, thindielectric, twosided"]);
 
     // Malformed XML in the included file, too.
     std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"diffuse\">\n</scene>\n").unwrap();
@@ -818,4 +818,23 @@ fn rough_bsdf_parameter_errors_are_located() {
     // A negative roughness.
     let e = load_err(&scene("    <bsdf type=\"roughconductor\">\n        <float name=\"alpha\" value=\"-0.1\"/>\n    </bsdf>\n"));
     assert_error(&e, &scene_path(), 10, 9, "<float name=\"alpha\"", "non-negative");
+}
+
+#[test]
+fn roughplastic_parameter_errors_are_located() {
+    // Mitsuba 3.9.1's roughplastic takes a float alpha only (its tables depend on it).
+    let e = load_err(&scene(
+        "    <bsdf type=\"roughplastic\">\n        <texture type=\"checkerboard\" name=\"alpha\"/>\n    </bsdf>\n",
+    ));
+    assert_error(&e, &scene_path(), 9, 5, "<bsdf type=\"roughplastic\"", "must be a float");
+    // And is isotropic.
+    let e = load_err(&scene("    <bsdf type=\"roughplastic\">\n        <float name=\"alpha_u\" value=\"0.1\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<float name=\"alpha_u\"", "isotropic");
+    // A negative roughness, an unknown distribution, equal indices.
+    let e = load_err(&scene("    <bsdf type=\"roughplastic\">\n        <float name=\"alpha\" value=\"-0.1\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<float name=\"alpha\"", "non-negative");
+    let e = load_err(&scene("    <bsdf type=\"roughplastic\">\n        <string name=\"distribution\" value=\"phong\"/>\n    </bsdf>\n"));
+    assert_help(&e, &["beckmann, ggx"]);
+    let e = load_err(&scene("    <bsdf type=\"roughplastic\">\n        <float name=\"int_ior\" value=\"1.5\"/>\n        <float name=\"ext_ior\" value=\"1.5\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<float name=\"int_ior\"", "must differ");
 }

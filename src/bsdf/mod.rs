@@ -49,6 +49,7 @@ pub mod polarizer;
 pub mod retarder;
 pub mod roughconductor;
 pub mod roughdielectric;
+pub mod roughplastic;
 pub mod thindielectric;
 pub mod twosided;
 
@@ -65,6 +66,7 @@ pub use polarizer::Polarizer;
 pub use retarder::Retarder;
 pub use roughconductor::RoughConductor;
 pub use roughdielectric::RoughDielectric;
+pub use roughplastic::RoughPlastic;
 pub use thindielectric::ThinDielectric;
 pub use twosided::TwoSided;
 
@@ -226,6 +228,7 @@ pub enum Bsdf {
     BumpMap(BumpMap),
     RoughConductor(RoughConductor),
     RoughDielectric(RoughDielectric),
+    RoughPlastic(RoughPlastic),
 }
 
 /// Static dispatch: `$b` is bound to the model inside each arm.
@@ -247,6 +250,7 @@ macro_rules! dispatch {
             Bsdf::BumpMap($b) => $e,
             Bsdf::RoughConductor($b) => $e,
             Bsdf::RoughDielectric($b) => $e,
+            Bsdf::RoughPlastic($b) => $e,
         }
     };
 }
@@ -270,6 +274,7 @@ impl Bsdf {
             Bsdf::BumpMap(_) => "bumpmap",
             Bsdf::RoughConductor(_) => "roughconductor",
             Bsdf::RoughDielectric(_) => "roughdielectric",
+            Bsdf::RoughPlastic(_) => "roughplastic",
         }
     }
 

@@ -32,9 +32,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub const SHAPES: [&str; 10] = ["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "shapegroup", "instance"];
-pub const BSDFS: [&str; 15] = [
+pub const BSDFS: [&str; 16] = [
     "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer", "retarder",
-    "roughconductor", "roughdielectric", "thindielectric", "twosided",
+    "roughconductor", "roughdielectric", "roughplastic", "thindielectric", "twosided",
 ];
 pub const TEXTURES: [&str; 3] = ["bitmap", "checkerboard", "mesh_attribute"];
 pub const EMITTERS: [&str; 7] = ["area", "point", "spot", "constant", "directional", "envmap", "projector"];
@@ -654,6 +654,7 @@ impl Loader {
             "bumpmap" => Bsdf::BumpMap(BumpMap::from_props(&props, self)?),
             "roughconductor" => Bsdf::RoughConductor(crate::bsdf::RoughConductor::from_props(&props, self)?),
             "roughdielectric" => Bsdf::RoughDielectric(crate::bsdf::RoughDielectric::from_props(&props, self)?),
+            "roughplastic" => Bsdf::RoughPlastic(crate::bsdf::RoughPlastic::from_props(&props, self)?),
             _ => return Err(unknown_plugin(node, &BSDFS)),
         };
         props.finish()?;
