@@ -32,15 +32,14 @@
 //! </bsdf>
 //! ```
 
-use super::normalmap::{PerturbOptions, Perturbed, single_nested};
-use super::{Bsdf, BsdfContext, BsdfModel, BsdfSample, Lobe};
+use super::normalmap::{PerturbOptions, perturbed_bsdf_model, single_nested};
+use super::Bsdf;
 use crate::geometry::SurfaceInteraction;
 use crate::scene::error::{Result, SceneError};
 use crate::scene::loader::PluginLoader;
 use crate::scene::props::Props;
-use crate::spectrum::Spectrum;
 use crate::texture::Texture;
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 
 #[derive(Clone, Debug)]
 pub struct BumpMap {
@@ -78,43 +77,12 @@ impl BumpMap {
     }
 }
 
-impl BsdfModel for BumpMap {
-    fn lobes(&self) -> Lobe {
-        self.nested.lobes()
-    }
-
-    fn has_mueller_model(&self) -> bool {
-        self.nested.has_mueller_model()
-    }
-
-    fn needs_tangent_frame(&self) -> bool {
-        true
-    }
-
-    fn disperses(&self) -> bool {
-        self.nested.disperses()
-    }
-
-    #[inline]
-    fn eval<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
-        Perturbed::new(si, self.perturbation(si), self.options, &self.nested).eval(ctx, wi, wo, wl)
-    }
-
-    #[inline]
-    fn pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> f32 {
-        Perturbed::new(si, self.perturbation(si), self.options, &self.nested).pdf::<S>(ctx, wi, wo, wl)
-    }
-
-    #[inline]
-    fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
-        Perturbed::new(si, self.perturbation(si), self.options, &self.nested).sample(ctx, wi, u1, u2, wl)
-    }
-}
+perturbed_bsdf_model!(BumpMap);
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bsdf::Diffuse;
+    use crate::bsdf::{BsdfContext, Diffuse};
     use crate::bsdf::testing::*;
     use crate::spectrum::Rgb;
     use crate::texture::bitmap::{Bitmap, Filter, Wrap};

@@ -33,7 +33,7 @@
 //! </bsdf>
 //! ```
 
-use super::{Bsdf, BsdfContext, BsdfModel, BsdfSample, Lobe};
+use super::{Bsdf, BsdfContext, BsdfSample};
 use crate::geometry::SurfaceInteraction;
 use crate::math::Frame;
 use crate::scene::error::{Result, SceneError};
@@ -170,38 +170,70 @@ impl<'a> Perturbed<'a> {
     }
 }
 
-impl BsdfModel for NormalMap {
-    fn lobes(&self) -> Lobe {
-        self.nested.lobes()
-    }
+/// The [`BsdfModel`] of a BSDF that perturbs the shading frame of its
+/// `nested` BSDF by the normal its `perturbation(si)` gives (`normalmap`,
+/// `bumpmap`): every call goes through [`Perturbed`] with its `options`.
+macro_rules! perturbed_bsdf_model {
+    ($model:ty) => {
+        impl $crate::bsdf::BsdfModel for $model {
+            fn lobes(&self) -> $crate::bsdf::Lobe {
+                self.nested.lobes()
+            }
 
-    fn has_mueller_model(&self) -> bool {
-        self.nested.has_mueller_model()
-    }
+            fn has_mueller_model(&self) -> bool {
+                self.nested.has_mueller_model()
+            }
 
-    fn needs_tangent_frame(&self) -> bool {
-        true
-    }
+            fn needs_tangent_frame(&self) -> bool {
+                true
+            }
 
-    fn disperses(&self) -> bool {
-        self.nested.disperses()
-    }
+            fn disperses(&self) -> bool {
+                self.nested.disperses()
+            }
 
-    #[inline]
-    fn eval<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> S {
-        Perturbed::new(si, self.perturbation(si), self.options, &self.nested).eval(ctx, wi, wo, wl)
-    }
+            #[inline]
+            fn eval<S: $crate::spectrum::Spectrum>(
+                &self,
+                ctx: &$crate::bsdf::BsdfContext,
+                si: &$crate::geometry::SurfaceInteraction,
+                wi: glam::Vec3,
+                wo: glam::Vec3,
+                wl: &S::Wavelengths,
+            ) -> S {
+                $crate::bsdf::normalmap::Perturbed::new(si, self.perturbation(si), self.options, &self.nested).eval(ctx, wi, wo, wl)
+            }
 
-    #[inline]
-    fn pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> f32 {
-        Perturbed::new(si, self.perturbation(si), self.options, &self.nested).pdf::<S>(ctx, wi, wo, wl)
-    }
+            #[inline]
+            fn pdf<S: $crate::spectrum::Spectrum>(
+                &self,
+                ctx: &$crate::bsdf::BsdfContext,
+                si: &$crate::geometry::SurfaceInteraction,
+                wi: glam::Vec3,
+                wo: glam::Vec3,
+                wl: &S::Wavelengths,
+            ) -> f32 {
+                $crate::bsdf::normalmap::Perturbed::new(si, self.perturbation(si), self.options, &self.nested).pdf::<S>(ctx, wi, wo, wl)
+            }
 
-    #[inline]
-    fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, u1: f32, u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
-        Perturbed::new(si, self.perturbation(si), self.options, &self.nested).sample(ctx, wi, u1, u2, wl)
-    }
+            #[inline]
+            fn sample<S: $crate::spectrum::Spectrum>(
+                &self,
+                ctx: &$crate::bsdf::BsdfContext,
+                si: &$crate::geometry::SurfaceInteraction,
+                wi: glam::Vec3,
+                u1: f32,
+                u2: glam::Vec2,
+                wl: &S::Wavelengths,
+            ) -> Option<$crate::bsdf::BsdfSample<S>> {
+                $crate::bsdf::normalmap::Perturbed::new(si, self.perturbation(si), self.options, &self.nested).sample(ctx, wi, u1, u2, wl)
+            }
+        }
+    };
 }
+pub(crate) use perturbed_bsdf_model;
+
+perturbed_bsdf_model!(NormalMap);
 
 #[cfg(test)]
 mod tests {
