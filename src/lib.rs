@@ -17,8 +17,10 @@ pub mod render;
 pub mod sampler;
 pub mod scene;
 pub mod sensor;
+pub mod session;
 pub mod spectrum;
 pub mod texture;
 
-pub use render::{RenderOptions, RenderStats, render};
+pub use render::{PassReport, RenderOptions, RenderStats, render};
+pub use session::Mode;
 pub use scene::{LoadOptions, Scene, SceneError, load_file, load_str};

@@ -3,7 +3,6 @@
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use snell::film::output::{Format, write_image};
-use snell::spectrum::{Polarized, Rgb, Sampled};
 use snell::{LoadOptions, RenderOptions};
 use std::collections::HashMap;
 use std::io::IsTerminal;
@@ -96,6 +95,17 @@ enum Mode {
     Spectral,
     RgbPolarized,
     SpectralPolarized,
+}
+
+impl From<Mode> for snell::Mode {
+    fn from(m: Mode) -> snell::Mode {
+        match m {
+            Mode::Rgb => snell::Mode::Rgb,
+            Mode::Spectral => snell::Mode::Spectral,
+            Mode::RgbPolarized => snell::Mode::RgbPolarized,
+            Mode::SpectralPolarized => snell::Mode::SpectralPolarized,
+        }
+    }
 }
 
 fn main() -> ExitCode {
@@ -235,28 +245,10 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             say!("{w}");
         }
     }
-    if polarized && matches!(scene.integrator, snell::integrator::Integrator::Particle(_)) {
-        anyhow::bail!(
-            "{}: the polarized modes need a camera-path integrator (path or direct); particle tracing (ptracer) does not carry polarization",
-            args.scene.display()
-        );
-    }
     if scene.stokes_requested && !polarized && !args.quiet {
         say!("warning: the scene's stokes integrator writes S1–S3 only in a polarized mode (--mode rgb-polarized or spectral-polarized); writing the intensity image");
     }
-    if polarized {
-        if let Some(b) = scene.bsdfs.iter().find(|b| !b.has_mueller_model()) {
-            anyhow::bail!(
-                "{}: the polarized modes support diffuse, dielectric, thindielectric, conductor, plastic, polarizer, retarder, roughconductor, roughdielectric and roughplastic BSDFs (and twosided of them); this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
-                args.scene.display(),
-                b.plugin()
-            );
-        }
-    }
-    if matches!(args.mode, Mode::Spectral | Mode::SpectralPolarized) {
-        // Fit the RGB uplift table now, so rendering time excludes it.
-        snell::spectrum::uplift::RgbUplift::get();
-    }
+    snell::session::prepare(&scene, args.mode.into(), &args.scene.display().to_string())?;
     let load_seconds = load_start.elapsed().as_secs_f64();
 
     let show = !args.quiet && std::io::stderr().is_terminal();
@@ -274,13 +266,8 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             say!("warning: cannot install the Ctrl-C handler ({e}); an interrupted render will not be saved");
         }
     }
-    let render_options = RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()) };
-    let (image, stats) = match args.mode {
-        Mode::Rgb => snell::render::<Rgb>(&scene, &render_options)?,
-        Mode::Spectral => snell::render::<Sampled>(&scene, &render_options)?,
-        Mode::RgbPolarized => snell::render::<Polarized<Rgb>>(&scene, &render_options)?,
-        Mode::SpectralPolarized => snell::render::<Polarized<Sampled>>(&scene, &render_options)?,
-    };
+    let render_options = RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()), ..RenderOptions::default() };
+    let (image, stats) = snell::session::render(&scene, args.mode.into(), &render_options, &mut |_| {})?;
     for o in &outputs {
         write_image(&image, o)?;
     }

@@ -29,11 +29,14 @@ pub struct RenderOptions {
     /// (tile rows; batches of light paths) not yet started are skipped, and
     /// the image develops from the samples taken ([`RenderStats::interrupted`]).
     pub stop: Option<Arc<AtomicBool>>,
+    /// Render in this many passes of growing sample counts (0 or 1: one
+    /// pass), calling the `on_pass` callback of [`render_passes`] after each.
+    pub passes: u32,
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { threads: 0, progress: false, stop: None }
+        RenderOptions { threads: 0, progress: false, stop: None, passes: 1 }
     }
 }
 
@@ -110,15 +113,15 @@ pub struct RenderStats {
 
 impl RenderStats {
     /// `samples` (camera samples, or light paths) rendered in `seconds`.
-    fn new(scene: &Scene, threads: usize, seconds: f64, samples: f64, invalid_samples: u64) -> RenderStats {
-        let planned = scene.film.crop[2] as u64 * scene.film.crop[3] as u64 * scene.sampler.sample_count as u64;
+    fn new(scene: &Scene, spp: u32, threads: usize, seconds: f64, samples: f64, invalid_samples: u64) -> RenderStats {
+        let planned = scene.film.crop[2] as u64 * scene.film.crop[3] as u64 * spp as u64;
         RenderStats {
             interrupted: (samples as u64) < planned,
             samples_taken: samples as u64,
             samples_planned: planned,
             width: scene.film.crop[2],
             height: scene.film.crop[3],
-            spp: scene.sampler.sample_count,
+            spp,
             threads,
             render_seconds: seconds,
             samples_per_second: if seconds > 0.0 { samples / seconds } else { 0.0 },
@@ -145,17 +148,83 @@ fn progress_bar(options: &RenderOptions, len: u64) -> ProgressBar {
     }
 }
 
-pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Result<(Image, RenderStats)> {
-    if let Integrator::Particle(tracer) = &scene.integrator {
-        return render_particles::<S>(scene, tracer, options);
+/// What [`render_passes`] reports after each pass: the image of every
+/// sample taken so far, and how far the render is.
+pub struct PassReport<'a> {
+    /// 1-based number of the pass just finished, and the number planned.
+    pub pass: u32,
+    pub passes: u32,
+    /// Samples per pixel in `image`, and in the finished render.
+    pub spp_done: u32,
+    pub spp_total: u32,
+    /// Seconds since the first pass began.
+    pub elapsed_seconds: f64,
+    pub image: &'a Image,
+}
+
+/// The cumulative samples per pixel after each of `passes` passes of an
+/// `spp`-sample render: growing passes (doubling) whose last ends at `spp`.
+pub fn pass_schedule(spp: u32, passes: u32) -> Vec<u32> {
+    let passes = passes.clamp(1, spp.max(1));
+    let mut ends: Vec<u32> = (1..=passes).map(|k| ((spp as u64) >> (passes - k)) as u32).collect();
+    // Small renders: make each pass take at least one sample.
+    for k in 0..ends.len() {
+        let least = k as u32 + 1;
+        if ends[k] < least {
+            ends[k] = least;
+        }
     }
+    ends
+}
+
+/// Renders `scene` to an image (one pass, or [`RenderOptions::passes`]).
+pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Result<(Image, RenderStats)> {
+    render_passes::<S>(scene, options, &mut |_| {})
+}
+
+/// Renders in [`RenderOptions::passes`] passes (see [`pass_schedule`]),
+/// calling `on_pass` with the image so far after each; a stop request ends
+/// the render after the pass under way.
+pub fn render_passes<S: Spectrum>(
+    scene: &Scene,
+    options: &RenderOptions,
+    on_pass: &mut dyn FnMut(&PassReport),
+) -> anyhow::Result<(Image, RenderStats)> {
+    let schedule = pass_schedule(scene.sampler.sample_count, options.passes);
+    let start = Instant::now();
+    let mut last = None;
+    for (k, &spp) in schedule.iter().enumerate() {
+        // Placeholder until the render loop takes sample ranges: a pass
+        // re-renders samples [0, spp) (addressable samples: the same image).
+        let (image, stats) = if let Integrator::Particle(tracer) = &scene.integrator {
+            render_particles::<S>(scene, tracer, options, spp)?
+        } else {
+            render_camera::<S>(scene, options, spp)?
+        };
+        on_pass(&PassReport {
+            pass: k as u32 + 1,
+            passes: schedule.len() as u32,
+            spp_done: spp,
+            spp_total: scene.sampler.sample_count,
+            elapsed_seconds: start.elapsed().as_secs_f64(),
+            image: &image,
+        });
+        let stop = stats.interrupted || options.stopped();
+        last = Some((image, stats));
+        if stop {
+            break;
+        }
+    }
+    last.ok_or_else(|| anyhow::anyhow!("no pass was rendered"))
+}
+
+fn render_camera<S: Spectrum>(scene: &Scene, options: &RenderOptions, spp: u32) -> anyhow::Result<(Image, RenderStats)> {
     check_memory(scene, S::POLARIZED)?;
     let threads = thread_count(options);
     let pool = thread_pool(threads)?;
     // The crop window (the whole film unless the scene crops): pixels are
     // numbered within it, the camera sees the full film.
     let [ox, oy, w, h] = scene.film.crop;
-    let spp = scene.sampler.sample_count;
     let taken = AtomicU64::new(0);
     let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
     let up = scene.camera.up();
@@ -204,8 +273,8 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
                     for x in tx..tx + tw {
                         // Seeded by the pixel's place in the full film: a crop
                         // renders the same samples as the full render there.
-                        let mut sampler = Sampler::for_pixel(scene.sampler.seed, x + ox, y + oy);
-                        for _ in 0..spp {
+                        for index in 0..spp {
+                            let mut sampler = Sampler::start(&scene.sampler, x + ox, y + oy, index);
                             let mut wl = S::sample_wavelengths(sampler.next_1d());
                             let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
                             let ray = scene.camera.sample_ray((pos + offset) * inv_size, &mut sampler);
@@ -257,7 +326,7 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
         film.merge(b);
     }
     let samples = taken.into_inner() as f64;
-    let stats = RenderStats::new(scene, threads, seconds, samples, invalid.into_inner());
+    let stats = RenderStats::new(scene, spp, threads, seconds, samples, invalid.into_inner());
     Ok((film.develop(), stats))
 }
 
@@ -287,14 +356,13 @@ const PARTICLE_CHUNKS: u64 = 256;
 /// camera connections through the reconstruction filter (weights normalised
 /// per splat, so a splat deposits exactly its value), divided by the number
 /// of paths.
-fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options: &RenderOptions) -> anyhow::Result<(Image, RenderStats)> {
+fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options: &RenderOptions, spp: u32) -> anyhow::Result<(Image, RenderStats)> {
     check_memory(scene, S::POLARIZED)?;
     let threads = thread_count(options);
     let pool = thread_pool(threads)?;
     // Paths land anywhere on the full film; only the crop window is kept.
     let [ox, oy, w, h] = scene.film.crop;
     let offset = Vec2::new(ox as f32, oy as f32);
-    let spp = scene.sampler.sample_count;
     let mut traced = 0u64;
     let total = w as u64 * h as u64 * spp as u64;
     let chunks = PARTICLE_CHUNKS.min(total.max(1));
@@ -320,7 +388,9 @@ fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options
                     let mut bad = 0u64;
                     let (first, last) = (total * c / chunks, total * (c + 1) / chunks);
                     for i in first..last {
-                        let mut sampler = Sampler::for_pixel(scene.sampler.seed ^ 0x7061_7274_6963_6c65, i as u32, (i >> 32) as u32 | 0x8000_0000);
+                        // Light path i is addressed as a sample of a pixel of its own numbering.
+                        let light = crate::sampler::SamplerSpec { seed: scene.sampler.seed ^ 0x7061_7274_6963_6c65, ..scene.sampler };
+                        let mut sampler = Sampler::start(&light, i as u32, (i >> 32) as u32 | 0x8000_0000, 0);
                         let mut wl = S::sample_wavelengths(sampler.next_1d());
                         tracer.trace::<S>(scene, &mut sampler, &mut wl, &mut |pos, rgb| {
                             if rgb.is_finite() {
@@ -360,7 +430,7 @@ fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options
             if v.is_finite() { v } else { Rgb::BLACK }
         })
         .collect();
-    let stats = RenderStats::new(scene, threads, seconds, traced as f64, invalid.into_inner());
+    let stats = RenderStats::new(scene, spp, threads, seconds, traced as f64, invalid.into_inner());
     let mut image = Image::new(w, h, pixels);
     image.pixel_format = scene.film.pixel_format;
     if scene.film.pixel_format.has_alpha() {
@@ -407,6 +477,26 @@ fn splat_normalized(buf: &mut [[f32; 3]], stride: usize, border: usize, filter: 
             let px = &mut buf[y as usize * stride + x as usize];
             for k in 0..3 {
                 px[k] += value.0[k] * wgt;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::pass_schedule;
+
+    #[test]
+    fn pass_schedule_grows_and_ends_at_the_sample_count() {
+        assert_eq!(pass_schedule(256, 1), vec![256]);
+        assert_eq!(pass_schedule(256, 0), vec![256]);
+        assert_eq!(pass_schedule(256, 4), vec![32, 64, 128, 256]);
+        for spp in 1..40 {
+            for passes in 0..12 {
+                let s = pass_schedule(spp, passes);
+                assert_eq!(*s.last().unwrap(), spp);
+                assert!(s.windows(2).all(|w| w[0] < w[1]), "{spp} {passes}: {s:?}");
+                assert!(s[0] >= 1);
             }
         }
     }
