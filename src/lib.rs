@@ -7,6 +7,7 @@
 //! carries and [`math`] the shared numerics.
 
 pub mod bsdf;
+pub mod cli;
 pub mod emitter;
 pub mod film;
 pub mod geometry;

@@ -1,0 +1,324 @@
+//! The `snell` command line: `snell render SCENE …`. It lives in the library
+//! so that the `snell` binary and the Python package's `snell` command run
+//! the same code ([`main_with_args`]).
+
+use anyhow::Context;
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use crate::film::output::{Format, write_image};
+use crate::{LoadOptions, RenderOptions};
+use std::collections::HashMap;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// `eprintln!` that ignores a closed or failing stderr instead of panicking
+/// (`snell render … 2>&1 | head -c0`).
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
+/// The most worker threads `--threads` accepts.
+const MAX_THREADS: usize = 4096;
+
+#[derive(Parser)]
+#[command(name = "snell", version, about = "A physically based renderer for Mitsuba 3 XML scenes")]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene to an image.
+    Render(RenderArgs),
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// The Mitsuba 3 XML scene file.
+    scene: PathBuf,
+    /// Output image(s): .exr (linear float), .png (8-bit sRGB) or .pfm. Repeatable.
+    /// Default: the scene's name with .exr, in the current folder.
+    #[arg(short, long = "output")]
+    output: Vec<PathBuf>,
+    /// Samples per pixel (overrides the scene's sampler).
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Render the film this many pixels wide, its height scaled to keep the
+    /// aspect ratio (any crop window reset): quick previews of any scene.
+    #[arg(long, value_name = "PIXELS")]
+    width: Option<u32>,
+    /// Set a scene parameter declared with <default name=…>, as NAME=VALUE. Repeatable.
+    #[arg(short = 'D', value_name = "NAME=VALUE")]
+    define: Vec<String>,
+    /// Worker threads (default: all cores; at most 4096).
+    #[arg(short, long, default_value_t = 0)]
+    threads: usize,
+    /// Largest texture image accepted, in pixels (e.g. 16384*16384); checked
+    /// from the image's header before it is decoded. Default 2^28, or the
+    /// environment variable SNELL_MAX_IMAGE_PIXELS.
+    #[arg(long, value_name = "PIXELS")]
+    max_image_pixels: Option<String>,
+    /// Memory budget of the film while rendering, in MB (estimated before
+    /// anything is allocated). Default 8192, or SNELL_MAX_FILM_BYTES (bytes).
+    #[arg(long, value_name = "MB")]
+    max_film_mb: Option<u64>,
+    /// Sampler seed (overrides the scene's).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Write render statistics (size, spp, threads, timing) as JSON to this file.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    /// No progress bar and no summary line.
+    #[arg(short, long)]
+    quiet: bool,
+    /// What a light path carries: RGB triples (as Mitsuba's *_rgb variants),
+    /// four sampled wavelengths (as its *_spectral variants; needed for
+    /// dispersion), or either with a Mueller matrix per channel (as its
+    /// *_polarized variants). Polarized renders write the Stokes components
+    /// S0–S3 as extra EXR channels (S1.R, …, S3.B), measured in the camera's
+    /// frame with S1 > 0 for horizontal polarization.
+    #[arg(long, value_enum, default_value_t = Mode::Rgb)]
+    mode: Mode,
+    /// Also write a false-colour PNG of the linear polarization (hue: angle,
+    /// brightness: degree) to this file. Needs a polarized --mode.
+    #[arg(long, value_name = "FILE.png")]
+    stokes_view: Option<PathBuf>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum Mode {
+    Rgb,
+    Spectral,
+    RgbPolarized,
+    SpectralPolarized,
+}
+
+impl From<Mode> for crate::Mode {
+    fn from(m: Mode) -> crate::Mode {
+        match m {
+            Mode::Rgb => crate::Mode::Rgb,
+            Mode::Spectral => crate::Mode::Spectral,
+            Mode::RgbPolarized => crate::Mode::RgbPolarized,
+            Mode::SpectralPolarized => crate::Mode::SpectralPolarized,
+        }
+    }
+}
+
+/// Runs the command line on `args` (the program name first, as
+/// `std::env::args_os()` gives them) and returns the process's exit code.
+/// `--help`, `--version` and usage errors print and exit as clap does.
+pub fn main_with_args<I, T>(args: I) -> ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let cli = Cli::parse_from(args);
+    let args = match cli.command {
+        Some(Command::Render(args)) => args,
+        None => match default_render() {
+            Ok(args) => args,
+            Err(e) => {
+                say!("error: {e:#}");
+                return ExitCode::FAILURE;
+            }
+        },
+    };
+    match run(args) {
+        Ok(code) => code,
+        Err(e) => {
+            match e.downcast_ref::<crate::SceneError>() {
+                Some(se) => say!("{se}"),
+                None => say!("error: {e:#}"),
+            }
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// `snell` with no arguments renders the bundled Cornell box to
+/// cornell-box.exr and cornell-box.png.
+fn default_render() -> anyhow::Result<RenderArgs> {
+    let rel = Path::new("scenes/cornell-box.xml");
+    let scene = if rel.exists() { rel.to_path_buf() } else { Path::new(env!("CARGO_MANIFEST_DIR")).join(rel) };
+    if !scene.exists() {
+        anyhow::bail!("no scene given and the bundled {} is missing; try `snell render SCENE`", rel.display());
+    }
+    Ok(RenderArgs {
+        scene,
+        output: vec!["cornell-box.exr".into(), "cornell-box.png".into()],
+        spp: None,
+        width: None,
+        define: vec![],
+        threads: 0,
+        max_image_pixels: None,
+        max_film_mb: None,
+        seed: None,
+        stats: None,
+        quiet: false,
+        mode: Mode::Rgb,
+        stokes_view: None,
+    })
+}
+
+/// Checks every output before the render: a known format, an existing and
+/// writable folder, and no file named twice.
+fn check_outputs(images: &[&PathBuf], stats: Option<&PathBuf>) -> anyhow::Result<()> {
+    let mut seen: Vec<PathBuf> = vec![];
+    for p in images.iter().copied().chain(stats) {
+        let abs = std::path::absolute(p).unwrap_or_else(|_| p.clone());
+        if seen.contains(&abs) {
+            anyhow::bail!("{} is given twice as an output; name each output once", p.display());
+        }
+        seen.push(abs);
+    }
+    for p in images {
+        crate::film::output::check_writable(p)?;
+    }
+    if let Some(p) = stats {
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if !dir.is_dir() {
+            anyhow::bail!("cannot write the statistics {}: its folder {} does not exist", p.display(), dir.display());
+        }
+    }
+    Ok(())
+}
+
+fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
+    let mut params = HashMap::new();
+    for d in &args.define {
+        let (k, v) = d.split_once('=').with_context(|| format!("-D {d}: expected NAME=VALUE"))?;
+        if k.is_empty() || !k.chars().all(|c| c.is_alphanumeric() || c == '_') {
+            anyhow::bail!("-D {d}: \"{k}\" is not a valid parameter name");
+        }
+        params.insert(k.to_string(), v.to_string());
+    }
+    if args.spp == Some(0) {
+        anyhow::bail!("--spp must be at least 1");
+    }
+    if let Some(spp) = args.spp.filter(|&n| n > crate::scene::loader::MAX_SPP) {
+        anyhow::bail!("--spp {spp} is above the limit of {} (2^24), the same as a scene's sample_count", crate::scene::loader::MAX_SPP);
+    }
+    let outputs = if args.output.is_empty() {
+        let stem = args.scene.file_stem().map_or("render".into(), |s| s.to_string_lossy().to_string());
+        vec![PathBuf::from(format!("{stem}.exr"))]
+    } else {
+        args.output.clone()
+    };
+    for o in &outputs {
+        if Format::from_path(o).is_none() {
+            anyhow::bail!("cannot tell the image format of {}: use one of .{}", o.display(), Format::EXTENSIONS.join(", ."));
+        }
+    }
+    if args.threads > MAX_THREADS {
+        anyhow::bail!("--threads {} is more than the {MAX_THREADS} worker threads Snell starts at most", args.threads);
+    }
+    if let Some(s) = &args.max_image_pixels {
+        let n = crate::limits::parse_count(s)
+            .with_context(|| format!("--max-image-pixels {s}: expected a pixel count such as 100000000 or 16384*16384"))?;
+        crate::limits::set_max_image_pixels(n);
+    }
+    if let Some(mb) = args.max_film_mb {
+        crate::limits::set_max_film_bytes(mb.saturating_mul(1 << 20));
+    }
+    let polarized = matches!(args.mode, Mode::RgbPolarized | Mode::SpectralPolarized);
+    if let Some(view) = &args.stokes_view {
+        if !polarized {
+            anyhow::bail!("--stokes-view needs a polarized mode: add --mode rgb-polarized or --mode spectral-polarized");
+        }
+        if Format::from_path(view) != Some(Format::Png) {
+            anyhow::bail!("--stokes-view {}: the polarization view is written as .png", view.display());
+        }
+    }
+
+    let images: Vec<&PathBuf> = outputs.iter().chain(&args.stokes_view).collect();
+    check_outputs(&images, args.stats.as_ref())?;
+
+    let load_start = std::time::Instant::now();
+    let options = LoadOptions { params, spp: args.spp, seed: args.seed };
+    let scene = match args.width {
+        Some(0) => anyhow::bail!("--width must be at least 1"),
+        Some(w) => crate::scene::loader::load_file_at_width(&args.scene, &options, w)?,
+        None => crate::load_file(&args.scene, &options)?,
+    };
+    if !args.quiet {
+        for w in &scene.warnings {
+            say!("{w}");
+        }
+    }
+    if scene.stokes_requested && !polarized && !args.quiet {
+        say!("warning: the scene's stokes integrator writes S1–S3 only in a polarized mode (--mode rgb-polarized or spectral-polarized); writing the intensity image");
+    }
+    crate::session::prepare(&scene, args.mode.into(), &args.scene.display().to_string())?;
+    let load_seconds = load_start.elapsed().as_secs_f64();
+
+    let show = !args.quiet && std::io::stderr().is_terminal();
+    // Ctrl-C or SIGTERM: finish the work under way, write what was rendered,
+    // exit 130. A second signal exits at once.
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    let handler = ctrlc::set_handler(move || {
+        if flag.swap(true, Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+    });
+    if let Err(e) = handler {
+        if !args.quiet {
+            say!("warning: cannot install the Ctrl-C handler ({e}); an interrupted render will not be saved");
+        }
+    }
+    let render_options = RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()), ..RenderOptions::default() };
+    let (image, stats) = crate::session::render(&scene, args.mode.into(), &render_options, &mut |_| {})?;
+    for o in &outputs {
+        write_image(&image, o)?;
+    }
+    if let Some(view) = &args.stokes_view {
+        let picture = crate::film::stokes::stokes_view(&image).context("the render has no Stokes layers")?;
+        write_image(&picture, view)?;
+    }
+    if let Some(path) = &args.stats {
+        let mut json = serde_json::to_value(&stats)?;
+        json["load_seconds"] = load_seconds.into();
+        json["scene"] = args.scene.display().to_string().into();
+        json["mode"] = args.mode.to_possible_value().map_or_else(String::new, |v| v.get_name().to_string()).into();
+        std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n").with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    if stats.interrupted {
+        let names: Vec<String> = outputs.iter().chain(&args.stokes_view).map(|o| o.display().to_string()).collect();
+        say!(
+            "interrupted: wrote the partial image ({} of {} samples, {:.1}%; each rendered pixel has {} spp, the rest are black) → {}",
+            stats.samples_taken,
+            stats.samples_planned,
+            100.0 * stats.samples_taken as f64 / stats.samples_planned.max(1) as f64,
+            stats.spp,
+            names.join(", ")
+        );
+        return Ok(ExitCode::from(130));
+    }
+    if !args.quiet {
+        let names: Vec<String> = outputs.iter().chain(&args.stokes_view).map(|o| o.display().to_string()).collect();
+        say!(
+            "rendered {}×{} at {} spp in {:.2} s ({:.2} M samples/s, {} threads; loading {:.2} s) → {}",
+            stats.width,
+            stats.height,
+            stats.spp,
+            stats.render_seconds,
+            stats.samples_per_second / 1e6,
+            stats.threads,
+            load_seconds,
+            names.join(", ")
+        );
+        if stats.invalid_samples > 0 {
+            say!("warning: {} samples were NaN or infinite and were set to zero", stats.invalid_samples);
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
