@@ -248,7 +248,7 @@ pub struct MicrofacetParams {
 /// color0); Snell does the same so that a checkered roughness renders as
 /// in Mitsuba (tests/scenes/rough-metals.xml against its reference).
 #[inline]
-fn scalar(t: &Texture, uv: Vec2) -> f32 {
+pub(crate) fn scalar(t: &Texture, uv: Vec2) -> f32 {
     let luminance = |c: Rgb| 0.212_671 * c.0[0] + 0.715_160 * c.0[1] + 0.072_169 * c.0[2];
     match t {
         Texture::Constant(c, _) => c.0[0],

@@ -46,6 +46,8 @@ pub mod normalmap;
 pub mod null;
 pub mod plastic;
 pub mod polarizer;
+pub mod principled;
+pub mod principledthin;
 pub mod retarder;
 pub mod roughconductor;
 pub mod roughdielectric;
@@ -63,6 +65,8 @@ pub use dielectric::Dielectric;
 pub use diffuse::Diffuse;
 pub use plastic::Plastic;
 pub use polarizer::Polarizer;
+pub use principled::Principled;
+pub use principledthin::PrincipledThin;
 pub use retarder::Retarder;
 pub use roughconductor::RoughConductor;
 pub use roughdielectric::RoughDielectric;
@@ -229,6 +233,8 @@ pub enum Bsdf {
     RoughConductor(RoughConductor),
     RoughDielectric(RoughDielectric),
     RoughPlastic(RoughPlastic),
+    Principled(Principled),
+    PrincipledThin(PrincipledThin),
 }
 
 /// Static dispatch: `$b` is bound to the model inside each arm.
@@ -251,6 +257,8 @@ macro_rules! dispatch {
             Bsdf::RoughConductor($b) => $e,
             Bsdf::RoughDielectric($b) => $e,
             Bsdf::RoughPlastic($b) => $e,
+            Bsdf::Principled($b) => $e,
+            Bsdf::PrincipledThin($b) => $e,
         }
     };
 }
@@ -275,6 +283,8 @@ impl Bsdf {
             Bsdf::RoughConductor(_) => "roughconductor",
             Bsdf::RoughDielectric(_) => "roughdielectric",
             Bsdf::RoughPlastic(_) => "roughplastic",
+            Bsdf::Principled(_) => "principled",
+            Bsdf::PrincipledThin(_) => "principledthin",
         }
     }
 

@@ -32,8 +32,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub const SHAPES: [&str; 10] = ["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "shapegroup", "instance"];
-pub const BSDFS: [&str; 16] = [
-    "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer", "retarder",
+pub const BSDFS: [&str; 18] = [
+    "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer", "principled",
+    "principledthin", "retarder",
     "roughconductor", "roughdielectric", "roughplastic", "thindielectric", "twosided",
 ];
 pub const TEXTURES: [&str; 3] = ["bitmap", "checkerboard", "mesh_attribute"];
@@ -655,6 +656,8 @@ impl Loader {
             "roughconductor" => Bsdf::RoughConductor(crate::bsdf::RoughConductor::from_props(&props, self)?),
             "roughdielectric" => Bsdf::RoughDielectric(crate::bsdf::RoughDielectric::from_props(&props, self)?),
             "roughplastic" => Bsdf::RoughPlastic(crate::bsdf::RoughPlastic::from_props(&props, self)?),
+            "principled" => Bsdf::Principled(crate::bsdf::Principled::from_props(&props, self)?),
+            "principledthin" => Bsdf::PrincipledThin(crate::bsdf::PrincipledThin::from_props(&props, self)?),
             _ => return Err(unknown_plugin(node, &BSDFS)),
         };
         props.finish()?;

@@ -91,6 +91,9 @@ pub trait Spectrum:
     /// The film's linear RGB value of this path's radiance estimate.
     fn to_rgb(&self, wavelengths: &Self::Wavelengths) -> Rgb;
     fn max_component(&self) -> f32;
+    /// The mean over the channels (RGB) or wavelengths (spectral) of the
+    /// unpolarised values (Mitsuba's `dr::mean` of a spectrum).
+    fn channel_mean(&self) -> f32;
     fn is_zero(&self) -> bool;
     /// Forgets polarisation (a diffuse surface's Mueller matrix keeps S0
     /// only); nothing to do for unpolarised types.

@@ -258,6 +258,9 @@ impl<U: Spectrum> Spectrum for Polarized<U> {
     fn max_component(&self) -> f32 {
         self.0[0][0].max_component()
     }
+    fn channel_mean(&self) -> f32 {
+        self.0[0][0].channel_mean()
+    }
     fn is_zero(&self) -> bool {
         self.0.iter().all(|row| row.iter().all(|v| v.is_zero()))
     }

@@ -145,6 +145,10 @@ impl Spectrum for Rgb {
         self.0[0].max(self.0[1]).max(self.0[2])
     }
     #[inline]
+    fn channel_mean(&self) -> f32 {
+        self.mean()
+    }
+    #[inline]
     fn is_zero(&self) -> bool {
         self.0 == [0.0; 3]
     }

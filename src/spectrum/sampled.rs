@@ -210,6 +210,10 @@ impl Spectrum for Sampled {
         self.0.max_element()
     }
     #[inline]
+    fn channel_mean(&self) -> f32 {
+        self.0.element_sum() / N as f32
+    }
+    #[inline]
     fn is_zero(&self) -> bool {
         self.0 == Vec4::ZERO
     }
