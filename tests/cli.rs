@@ -285,3 +285,32 @@ fn polarized_render_writes_stokes_channels_and_view() {
     let png = image::open(&view).unwrap_or_else(|e| panic!("{}: {e}", view.display()));
     assert_eq!((png.width(), png.height()), (16, 16));
 }
+
+/// The polarized modes refuse a scene whose BSDF has no Mueller model
+/// (principled, principledthin), naming it and the modes that render it;
+/// the same scene renders in RGB and spectral mode.
+#[test]
+fn polarized_modes_refuse_bsdfs_without_a_mueller_model() {
+    for plugin in ["principled", "principledthin"] {
+        let (dir, _) = setup(&format!("polarized-refusal-{plugin}"));
+        let scene = dir.join("principled.xml");
+        let text = SCENE.replace(
+            "<bsdf type=\"diffuse\">\n            <rgb name=\"reflectance\" value=\"0.2, 0.5, 0.8\"/>",
+            &format!("<bsdf type=\"{plugin}\">\n            <rgb name=\"base_color\" value=\"0.2, 0.5, 0.8\"/>"),
+        );
+        assert!(text.contains(plugin));
+        std::fs::write(&scene, text).unwrap();
+        for mode in ["rgb-polarized", "spectral-polarized"] {
+            let out = dir.join(format!("{mode}.exr"));
+            let err = assert_failure(&snell(&["render", s(&scene), "--mode", mode, "-o", s(&out)], &dir));
+            assert!(err.contains(&format!("\"{plugin}\" BSDF")) && err.contains("--mode rgb or spectral"), "{err}");
+            assert!(!out.exists(), "no image is written");
+        }
+        for mode in ["rgb", "spectral"] {
+            let out = dir.join(format!("{mode}.exr"));
+            assert_success(&snell(&["render", s(&scene), "--mode", mode, "-o", s(&out), "-q"], &dir));
+            let img = read_exr(&out);
+            assert!(img.pixels.iter().all(|p| p.is_finite()) && img.pixels.iter().any(|p| p.mean() > 0.01));
+        }
+    }
+}

@@ -80,3 +80,17 @@ fn rough_glass() {
 fn rough_plastic() {
     check("tests/scenes/rough-plastic.xml", "tests/references/rough-plastic.exr");
 }
+
+// Issue 12: Mitsuba's principled BSDFs over their parameter ranges (sheen,
+// flatness, anisotropic metal, transmission, clearcoat, textured roughness
+// and spec_trans).
+
+#[test]
+fn principled() {
+    check("tests/scenes/principled.xml", "tests/references/principled.exr");
+}
+
+#[test]
+fn principledthin() {
+    check("tests/scenes/principledthin.xml", "tests/references/principledthin.exr");
+}

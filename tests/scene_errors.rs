@@ -838,3 +838,19 @@ fn roughplastic_parameter_errors_are_located() {
     let e = load_err(&scene("    <bsdf type=\"roughplastic\">\n        <float name=\"int_ior\" value=\"1.5\"/>\n        <float name=\"ext_ior\" value=\"1.5\"/>\n    </bsdf>\n"));
     assert_error(&e, &scene_path(), 10, 9, "<float name=\"int_ior\"", "must differ");
 }
+
+#[test]
+fn principled_parameter_errors_are_located() {
+    // Mitsuba 3.9.1 refuses both "eta" and "specular" (one sets the other).
+    let e = load_err(&scene(
+        "    <bsdf type=\"principled\">\n        <float name=\"eta\" value=\"1.5\"/>\n        <float name=\"specular\" value=\"0.3\"/>\n    </bsdf>\n",
+    ));
+    assert_error(&e, &scene_path(), 11, 9, "<float name=\"specular\"", "either \"eta\" or \"specular\"");
+    let e = load_err(&scene("    <bsdf type=\"principled\">\n        <float name=\"eta\" value=\"-1\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<float name=\"eta\"", "positive");
+    let e = load_err(&scene("    <bsdf type=\"principledthin\">\n        <float name=\"diffuse_reflectance_sampling_rate\" value=\"-1\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<float name=\"diffuse_reflectance_sampling_rate\"", "non-negative");
+    // A misspelt parameter is unused, as for every plugin.
+    let e = load_err(&scene("    <bsdf type=\"principled\">\n        <float name=\"metalic\" value=\"1\"/>\n    </bsdf>\n"));
+    assert_error(&e, &scene_path(), 10, 9, "<float name=\"metalic\"", "metalic");
+}
