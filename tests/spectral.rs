@@ -73,6 +73,14 @@ fn caustic_box_matches_mitsuba_spectral() {
     check_against_mitsuba_spectral("scenes/caustic-cornell-box.xml", "tests/references/spectral/caustic-cornell-box.exr", 64);
 }
 
+/// Issue 12: rough conductors (named metals with measured η(λ), k(λ); GGX
+/// and Beckmann, anisotropic, textured α) in spectral mode against
+/// Mitsuba's llvm_ad_spectral.
+#[test]
+fn rough_metals_match_mitsuba_spectral() {
+    check_against_mitsuba_spectral("tests/scenes/rough-metals.xml", "tests/references/spectral/rough-metals.exr", 16);
+}
+
 /// A listed `<spectrum>` is used as such in spectral mode. A sphere whose
 /// reflectance is a 20 nm band at 550 nm, in a constant environment emitting
 /// the same band: a convex diffuse object in a uniform environment reflects
