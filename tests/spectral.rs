@@ -77,9 +77,10 @@ fn caustic_box_matches_mitsuba_spectral() {
 /// and Beckmann, anisotropic, textured α) in spectral mode against
 /// Mitsuba's llvm_ad_spectral. KNOWN DIFFERENCE (open): the image means
 /// agree within 1.6 %, but the right-hand sphere (checkerboard α with rgb
-/// η/k) differs by up to 40 σ in its blocks; suspects: Mitsuba's
-/// checkerboard `eval_1` quirk (Snell swaps the squares, as Mitsuba's RGB
-/// variants do) or the spectral uplift of rgb η/k. Run with `--ignored`.
+/// η/k) differs by up to 40 σ in its blocks. Not the checkerboard's `eval_1`
+/// (Mitsuba's scalar_spectral swaps the squares as its RGB variants do,
+/// checked with its Python bindings); the suspect is the spectral uplift of
+/// rgb η/k. Run with `--ignored`.
 #[test]
 #[ignore = "known difference against llvm_ad_spectral on the checkerboard-alpha sphere (see the doc comment)"]
 fn rough_metals_match_mitsuba_spectral() {
