@@ -290,7 +290,7 @@ fn flatten(image: &Image) -> (Vec<String>, Vec<f32>) {
         planes.push(values.clone());
     }
     let mut layers: Vec<(&str, &[Rgb])> = vec![];
-    if image.layer("S1").is_some() {
+    if image.layer("S1").is_some() && image.layer("S0").is_none() {
         layers.push(("S0", &image.pixels));
     }
     layers.extend(image.layers.iter().map(|l| (l.name.as_str(), l.pixels.as_slice())));

@@ -23,6 +23,18 @@ def snell_command():
     return found
 
 
+def commands():
+    """The command lines to compare Python with: the installed `snell`
+    script (the same extension module) and, where the repository's own
+    release build exists, the Rust binary (built by another compiler setup:
+    fat LTO, one codegen unit)."""
+    out = [("script", snell_command())]
+    binary = ROOT / "target" / "release" / ("snell.exe" if os.name == "nt" else "snell")
+    if binary.exists():
+        out.append(("binary", str(binary)))
+    return out
+
+
 @pytest.fixture
 def cornell():
     return str(SCENES / "cornell-box.xml")

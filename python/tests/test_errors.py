@@ -16,14 +16,14 @@ GOOD_HEAD = """<scene version="3.0.0">
 
 # (name, scene text, line, column or None, words in the message)
 CASES = [
-    ("xml syntax", GOOD_HEAD + "    <shape type=\"sphere\">\n</scene>\n", 7, None, ""),
-    ("unknown plugin", GOOD_HEAD + "    <shape type=\"teapot\"/>\n</scene>\n", 6, 5, "teapot"),
-    ("unknown element", GOOD_HEAD + "    <shaep type=\"sphere\"/>\n</scene>\n", 6, 5, "shaep"),
-    ("not a number", GOOD_HEAD + "    <shape type=\"sphere\">\n        <float name=\"radius\" value=\"big\"/>\n    </shape>\n</scene>\n", 7, None, "big"),
-    ("unused parameter", GOOD_HEAD + "    <shape type=\"sphere\">\n        <float name=\"radiuss\" value=\"1\"/>\n    </shape>\n</scene>\n", 7, None, "radiuss"),
-    ("missing reference", GOOD_HEAD + "    <shape type=\"sphere\">\n        <ref id=\"nowhere\"/>\n    </shape>\n</scene>\n", 7, None, "nowhere"),
-    ("missing mesh file", GOOD_HEAD + "    <shape type=\"obj\">\n        <string name=\"filename\" value=\"no-such.obj\"/>\n    </shape>\n</scene>\n", 7, None, "no-such.obj"),
-    ("undeclared parameter use", GOOD_HEAD + "    <shape type=\"sphere\">\n        <float name=\"radius\" value=\"$r\"/>\n    </shape>\n</scene>\n", 7, None, "r"),
+    ("xml syntax", GOOD_HEAD + "    <shape type=\"sphere\">\n</scene>\n", 6, 1, ""),
+    ("unknown plugin", GOOD_HEAD + "    <shape type=\"teapot\"/>\n</scene>\n", 5, 5, "teapot"),
+    ("unknown element", GOOD_HEAD + "    <shaep type=\"sphere\"/>\n</scene>\n", 5, 5, "shaep"),
+    ("not a number", GOOD_HEAD + "    <shape type=\"sphere\">\n        <float name=\"radius\" value=\"big\"/>\n    </shape>\n</scene>\n", 6, None, "big"),
+    ("unused parameter", GOOD_HEAD + "    <shape type=\"sphere\">\n        <float name=\"radiuss\" value=\"1\"/>\n    </shape>\n</scene>\n", 6, None, "radiuss"),
+    ("missing reference", GOOD_HEAD + "    <shape type=\"sphere\">\n        <ref id=\"nowhere\"/>\n    </shape>\n</scene>\n", 6, None, "nowhere"),
+    ("missing mesh file", GOOD_HEAD + "    <shape type=\"obj\">\n        <string name=\"filename\" value=\"no-such.obj\"/>\n    </shape>\n</scene>\n", 6, None, "no-such.obj"),
+    ("undeclared parameter use", GOOD_HEAD + "    <shape type=\"sphere\">\n        <float name=\"radius\" value=\"$r\"/>\n    </shape>\n</scene>\n", 6, None, "r"),
 ]
 
 
@@ -70,7 +70,7 @@ def test_unknown_param_lists_the_declared_ones(cornell):
 def test_mode_the_scene_cannot_use_is_a_scene_error(tmp_path):
     path = tmp_path / "pt.xml"
     path.write_text(GOOD_HEAD.replace("<sensor", "<integrator type=\"ptracer\"/>\n    <sensor")
-                    + "    <shape type=\"sphere\"><emitter type=\"area\"/></shape>\n</scene>\n")
+                    + "    <shape type=\"sphere\"><emitter type=\"area\"><rgb name=\"radiance\" value=\"1\"/></emitter></shape>\n</scene>\n")
     scene = snell.load_file(path)
     with pytest.raises(snell.SceneError, match="polarized") as info:
         snell.render(scene, spp=1, mode="rgb-polarized")

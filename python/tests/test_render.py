@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import snell
-from conftest import SCENES, TEST_SCENES, snell_command
+from conftest import SCENES, TEST_SCENES, commands, snell_command
 
 
 @pytest.mark.parametrize(
@@ -20,19 +20,20 @@ from conftest import SCENES, TEST_SCENES, snell_command
     ],
 )
 def test_render_is_bit_identical_to_the_command_line(tmp_path, scene, mode, spp, seed, params):
-    out = tmp_path / "cli.exr"
-    defines = [a for k, v in params.items() for a in ("-D", f"{k}={v}")]
-    cmd = [snell_command(), "render", str(scene), "-o", str(out), "--spp", str(spp), "--seed", str(seed),
-           "--mode", mode, "-q", *defines]
-    subprocess.run(cmd, check=True, timeout=600)
-    cli = snell.read(out)
     s = snell.load_file(scene, **params)
     image = snell.render(s, spp=spp, seed=seed, mode=mode)
     assert image.dtype == np.float32
-    assert image.shape == cli.shape, (image.shape, cli.shape)
-    assert snell.channel_names(s, mode) == snell.channel_names(out)
-    assert np.array_equal(image, cli), f"max difference {np.abs(image - cli).max()}"
     assert image[..., :3].max() > 0
+    defines = [a for k, v in params.items() for a in ("-D", f"{k}={v}")]
+    for what, command in commands():
+        out = tmp_path / f"{what}.exr"
+        cmd = [command, "render", str(scene), "-o", str(out), "--spp", str(spp), "--seed", str(seed),
+               "--mode", mode, "-q", *defines]
+        subprocess.run(cmd, check=True, timeout=600)
+        cli = snell.read(out)
+        assert image.shape == cli.shape, (what, image.shape, cli.shape)
+        assert snell.channel_names(s, mode) == snell.channel_names(out), what
+        assert np.array_equal(image, cli), f"{what}: max difference {np.abs(image - cli).max()}"
 
 
 def test_params_set_declared_defaults(cornell):
