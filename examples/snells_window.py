@@ -84,26 +84,30 @@ def pixel_angles(res: int, fov_deg: float) -> np.ndarray:
     return np.degrees(np.arctan(np.hypot(x, y)))
 
 
-def main(out: str = "snells_window.png", spp: int = 64) -> None:
+def measure(spp: int):
+    """Renders the window; returns the image's brightness, the binned
+    (angle, mean brightness) pairs, the closed form at those angles, and the
+    critical angle."""
     scene = window_scene(spp)
     image = snell.render(scene, spp=spp)
     brightness = image[..., 1]  # the sky is grey: G = R = B
     theta = pixel_angles(RES, FOV)
-
-    # Binned mean brightness against angle, and the closed form.
     bins = np.linspace(0, theta.max(), 60)
     idx = np.digitize(theta.ravel(), bins)
     centres, means = [], []
     for k in range(1, len(bins)):
-        sel = brightness.ravel()[idx == k]
-        if sel.size:
-            centres.append(theta.ravel()[idx == k].mean())
-            means.append(sel.mean())
+        sel = idx == k
+        if sel.any():
+            centres.append(theta.ravel()[sel].mean())
+            means.append(brightness.ravel()[sel].mean())
     centres, means = np.array(centres), np.array(means)
-    exact = closed_form(centres)
-    critical = math.degrees(math.asin(1 / ETA))
-    # Away from the window's edge (where a pixel straddles two regimes), the
-    # render and the closed form agree to within the noise of a few %.
+    return brightness, theta, centres, means, closed_form(centres), math.degrees(math.asin(1 / ETA))
+
+
+def main(out: str = "snells_window.png", spp: int = 64) -> None:
+    brightness, theta, centres, means, exact, critical = measure(spp)
+    # Away from the window's edge (where a bin mixes the two sides), the
+    # render and the closed form agree to within the noise.
     away = np.abs(centres - critical) > 2.0
     worst = np.max(np.abs(means[away] - exact[away]) / exact[away])
     print(f"critical angle {critical:.2f}°; largest deviation from the closed form away from the edge: {100 * worst:.2f} %")
@@ -116,7 +120,7 @@ def main(out: str = "snells_window.png", spp: int = 64) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(1, 3, figsize=(14, 4.2))
-    ax[0].imshow(np.clip(brightness / (ETA * ETA), 0, 1) ** (1 / 2.2), cmap="gray")
+    ax[0].imshow(np.clip(brightness / (ETA * ETA), 0, 1) ** (1 / 2.2), cmap="gray", vmin=0, vmax=1)
     ax[0].set_title("looking up from under water (uniform sky)")
     ax[0].axis("off")
     t = np.linspace(0, theta.max(), 400)
