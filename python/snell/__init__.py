@@ -495,6 +495,8 @@ def render(
         raise ValueError(f"spp={spp} is negative")
     if seed is not None and seed < 0:
         raise ValueError(f"seed={seed} is negative")
+    if threads is not None and not 0 <= threads <= 4096:
+        raise ValueError(f"threads={threads}: give 1 to 4096 worker threads (None or 0: all cores)")
     if passes is None:
         passes = 4 if progress is not None else 1
     on_pass = None

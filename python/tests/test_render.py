@@ -113,6 +113,8 @@ def test_bad_render_arguments(cornell):
         snell.render(s, mode="hyperspectral")
     with pytest.raises(ValueError, match="2\\^24"):
         snell.render(s, spp=1 << 25)
+    with pytest.raises(ValueError, match="4096"):
+        snell.render(s, threads=100000)
     with pytest.raises(TypeError):
         snell.render("scene.xml")
 

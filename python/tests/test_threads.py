@@ -12,8 +12,9 @@ import snell
 
 
 def slow_scene(cornell):
-    # About a minute of work on two cores if nothing stopped it.
-    return snell.load_file(cornell, res=256, max_depth=16)
+    # Minutes of work on two cores if nothing stopped it, in small units (a
+    # tile row: 16 pixels x 512 samples) that a stop request lets finish.
+    return snell.load_file(cornell, res=512, max_depth=16)
 
 
 @pytest.mark.skipif(not hasattr(signal, "SIGINT") or os.name == "nt", reason="needs POSIX signals")
@@ -29,7 +30,7 @@ def test_keyboard_interrupt_stops_a_render_within_a_second(cornell):
     timer.start()
     start = time.perf_counter()
     with pytest.raises(KeyboardInterrupt):
-        snell.render(scene, spp=4096)
+        snell.render(scene, spp=512)
     end = time.perf_counter()
     timer.join()
     assert sent, "the timer never fired"
