@@ -143,6 +143,9 @@ impl NativeScene {
             snell::sensor::Camera::Perspective(_) => "perspective",
             snell::sensor::Camera::Orthographic(_) => "orthographic",
             snell::sensor::Camera::ThinLens(_) => "thinlens",
+            // Sensors added to the renderer later.
+            #[allow(unreachable_patterns)]
+            _ => "other",
         }
     }
 
@@ -155,6 +158,8 @@ impl NativeScene {
             I::Particle(_) => "ptracer",
             I::Aov(_) => "aov",
             I::Moment(_) => "moment",
+            #[allow(unreachable_patterns)]
+            _ => "other",
         }
     }
 
@@ -172,6 +177,8 @@ impl NativeScene {
                 E::Spot(_) => "spot",
                 E::EnvMap(_) => "envmap",
                 E::Projector(_) => "projector",
+                #[allow(unreachable_patterns)]
+                _ => "other",
             })
             .collect()
     }
@@ -190,6 +197,8 @@ impl NativeScene {
                     G::Sphere(_) => "sphere",
                     G::Disk(_) => "disk",
                     G::Cylinder(_) => "cylinder",
+                    #[allow(unreachable_patterns)]
+                    _ => "other",
                 };
                 let bsdf = s.bsdfs.get(sh.bsdf as usize).map_or("none", |b| b.plugin());
                 (geometry, bsdf, sh.emitter.is_some())
