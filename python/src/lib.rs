@@ -349,10 +349,10 @@ fn unflatten(width: u32, height: u32, names: &[String], data: &[f32]) -> anyhow:
     // written from it); the rest are scalar channels.
     let mut layer_names: Vec<String> = vec![];
     for name in names {
-        if let Some(prefix) = name.strip_suffix(".R") {
-            if !layer_names.iter().any(|l| l == prefix) {
-                layer_names.push(prefix.to_string());
-            }
+        if let Some(prefix) = name.strip_suffix(".R")
+            && !layer_names.iter().any(|l| l == prefix)
+        {
+            layer_names.push(prefix.to_string());
         }
     }
     for prefix in layer_names {
@@ -402,12 +402,14 @@ fn render(
 ) -> PyResult<RenderResult> {
     guarded(|| {
         let mode = parse_mode(mode)?;
-        if let Some(n) = spp {
-            if !(1..=snell::scene::loader::MAX_SPP).contains(&n) {
-                return Err(PyValueError::new_err(format!("spp={n} is not between 1 and {} (2^24)", snell::scene::loader::MAX_SPP)));
-            }
+        if let Some(n) = spp
+            && !(1..=snell::scene::loader::MAX_SPP).contains(&n)
+        {
+            return Err(PyValueError::new_err(format!("spp={n} is not between 1 and {} (2^24)", snell::scene::loader::MAX_SPP)));
         }
         let stop = Arc::new(AtomicBool::new(false));
+        // `..default()` keeps this building when RenderOptions gains fields.
+        #[allow(clippy::needless_update)]
         let options = RenderOptions { threads, progress: false, stop: Some(stop.clone()), passes: passes.max(1), ..RenderOptions::default() };
         // An exception raised by on_pass, kept to raise once the render ends.
         let callback_error: Mutex<Option<PyErr>> = Mutex::new(None);
@@ -458,11 +460,11 @@ fn render(
                     Ok(result) => break Some(result),
                     Err(mpsc::RecvTimeoutError::Disconnected) => break None,
                     Err(mpsc::RecvTimeoutError::Timeout) => {
-                        if interrupt.is_none() {
-                            if let Err(e) = py.check_signals() {
-                                stop.store(true, Ordering::SeqCst);
-                                interrupt = Some(e);
-                            }
+                        if interrupt.is_none()
+                            && let Err(e) = py.check_signals()
+                        {
+                            stop.store(true, Ordering::SeqCst);
+                            interrupt = Some(e);
                         }
                     }
                 }
