@@ -341,7 +341,9 @@ fn a_progressive_render_publishes_every_pass() {
         seen.push((r.pass, r.spp_done));
     })
     .unwrap();
-    assert_eq!(seen, vec![(1, 1), (2, 2), (3, 4), (4, 8)]);
+    let schedule = snell::render::pass_schedule(8, passes);
+    assert_eq!(seen, schedule.iter().enumerate().map(|(k, &spp)| (k as u32 + 1, spp)).collect::<Vec<_>>());
+    assert_eq!(seen[0].1, 1, "the preview's passes start at one sample per pixel");
     p.finish(&stats);
     assert_eq!(decode(&get(p.addr(), "/image").body).4, flatten(&image));
     let j = get(p.addr(), "/progress").json();
@@ -354,4 +356,46 @@ fn a_taken_port_is_a_clear_error() {
     let err = Preview::start(p.addr(), Mode::Rgb, 1, 1, Arc::new(AtomicBool::new(false))).err().expect("the port is taken");
     let msg = format!("{err:#}");
     assert!(msg.contains(&p.addr().to_string()) && msg.contains("--preview PORT"), "{msg}");
+}
+
+/// The command line: `--preview 0` prints the URL, renders in the default
+/// passes (each written by `--preview-dump-passes`, the last equal to the
+/// output), and the preview's options need `--preview`.
+#[test]
+fn the_command_line_serves_and_renders_in_passes() {
+    let dir = std::env::temp_dir().join(format!("snell-preview-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("scene.xml");
+    std::fs::write(
+        &scene,
+        r#"<scene version="3.0.0">
+        <sensor type="perspective">
+            <transform name="to_world"><lookat origin="0, 0, 4" target="0, 0, 0" up="0, 1, 0"/></transform>
+            <sampler type="independent"><integer name="sample_count" value="4"/></sampler>
+            <film type="hdrfilm"><integer name="width" value="12"/><integer name="height" value="8"/></film>
+        </sensor>
+        <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+        <shape type="sphere"><bsdf type="diffuse"/></shape>
+    </scene>"#,
+    )
+    .unwrap();
+    let snell = |args: &[&str]| std::process::Command::new(env!("CARGO_BIN_EXE_snell")).args(args).current_dir(&dir).output().unwrap();
+    let out = snell(&["render", "scene.xml", "-o", "out.exr", "--preview", "0", "--preview-dump-passes", "passes"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.lines().any(|l| l.starts_with("preview: http://127.0.0.1:") && l.ends_with('/')), "{err}");
+    let mut passes: Vec<String> = std::fs::read_dir(dir.join("passes")).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().to_string()).collect();
+    passes.sort();
+    let n = snell::render::pass_schedule(4, snell::preview::default_passes(4)).len();
+    assert!(n >= 2, "a preview renders in passes");
+    assert_eq!(passes, (1..=n).map(|k| format!("pass-{k:03}.exr")).collect::<Vec<_>>());
+    let last = snell::film::output::read_exr(&dir.join(format!("passes/pass-{n:03}.exr"))).unwrap();
+    let output = snell::film::output::read_exr(&dir.join("out.exr")).unwrap();
+    assert_eq!(last.pixels, output.pixels);
+
+    let out = snell(&["render", "scene.xml", "--preview-bind", "127.0.0.1"]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--preview"));
+    let _ = std::fs::remove_dir_all(&dir);
 }
