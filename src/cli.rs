@@ -89,6 +89,20 @@ struct RenderArgs {
     /// brightness: degree) to this file. Needs a polarized --mode.
     #[arg(long, value_name = "FILE.png")]
     stokes_view: Option<PathBuf>,
+    /// Watch the render in the browser: serve a live preview on this port
+    /// (default 8730; 0 picks a free one) and print its URL. The image is
+    /// rendered in passes (1, 2, 4, … spp) and shown after each; the page's
+    /// Stop button ends the render as Ctrl-C does. Put it after the scene.
+    #[arg(long, value_name = "PORT", num_args = 0..=1, default_missing_value = "8730")]
+    preview: Option<u16>,
+    /// The address the preview listens on (default 127.0.0.1: this machine
+    /// only; 0.0.0.0 lets other machines watch).
+    #[arg(long, value_name = "ADDR", requires = "preview")]
+    preview_bind: Option<std::net::IpAddr>,
+    /// Testing aid: with --preview, also write each pass's image as
+    /// DIR/pass-001.exr, pass-002.exr, … (the image the page is sent).
+    #[arg(long, value_name = "DIR", requires = "preview")]
+    preview_dump_passes: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -163,6 +177,9 @@ fn default_render() -> anyhow::Result<RenderArgs> {
         quiet: false,
         mode: Mode::Rgb,
         stokes_view: None,
+        preview: None,
+        preview_bind: None,
+        preview_dump_passes: None,
     })
 }
 
@@ -275,8 +292,34 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             say!("warning: cannot install the Ctrl-C handler ({e}); an interrupted render will not be saved");
         }
     }
-    let render_options = RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()), ..RenderOptions::default() };
-    let (image, stats) = crate::session::render(&scene, args.mode.into(), &render_options, &mut |_| {})?;
+    let preview = match args.preview {
+        Some(port) => {
+            let bind = args.preview_bind.unwrap_or(std::net::Ipv4Addr::LOCALHOST.into());
+            let [_, _, w, h] = scene.film.crop;
+            let p = crate::preview::Preview::start((bind, port).into(), args.mode.into(), w, h, stop.clone())?;
+            say!("preview: {}", p.url());
+            Some(p)
+        }
+        None => None,
+    };
+    if let Some(dir) = &args.preview_dump_passes {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create the folder {}", dir.display()))?;
+    }
+    let passes = if preview.is_some() { crate::preview::default_passes(scene.sampler.sample_count) } else { 1 };
+    let mut on_pass = |report: &crate::PassReport| {
+        // The file first: a page that shows a pass finds its EXR written.
+        if let Some(dir) = &args.preview_dump_passes {
+            let path = dir.join(format!("pass-{:03}.exr", report.pass));
+            if let Err(e) = write_image(report.image, &path) {
+                say!("warning: {e:#}");
+            }
+        }
+        if let Some(p) = &preview {
+            p.publish(report);
+        }
+    };
+    let render_options = RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()), passes, ..RenderOptions::default() };
+    let (image, stats) = crate::session::render(&scene, args.mode.into(), &render_options, &mut on_pass)?;
     for o in &outputs {
         write_image(&image, o)?;
     }
@@ -290,6 +333,9 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         json["scene"] = args.scene.display().to_string().into();
         json["mode"] = args.mode.to_possible_value().map_or_else(String::new, |v| v.get_name().to_string()).into();
         std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n").with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    if let Some(p) = &preview {
+        p.finish(&stats);
     }
     if stats.interrupted {
         let names: Vec<String> = outputs.iter().chain(&args.stokes_view).map(|o| o.display().to_string()).collect();
