@@ -30,6 +30,7 @@ use crate::bsdf::{Lobe, BsdfContext};
 use crate::geometry::Ray;
 use crate::math::mis_power;
 use crate::sampler::Sampler;
+use crate::emitter::ShadingPoint;
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;
 
@@ -90,11 +91,11 @@ impl Direct {
             let delta = bs.lobe.intersects(Lobe::DELTA);
             let (le, em_pdf) = match scene.intersect_path(&ray, false, sampler) {
                 Some(hit) => match scene.emitted::<S>(&hit, wl) {
-                    Some(le) => (le, if delta { 0.0 } else { scene.pdf_emitter_hit(si.p, &hit) }),
+                    Some(le) => (le, if delta { 0.0 } else { scene.pdf_emitter_hit(&ShadingPoint::from(&si), &hit) }),
                     None => continue,
                 },
                 None => match scene.environment_radiance::<S>(d, wl) {
-                    Some(le) => (le, if delta { 0.0 } else { scene.pdf_environment(si.p, d) }),
+                    Some(le) => (le, if delta { 0.0 } else { scene.pdf_environment(&ShadingPoint::from(&si), d) }),
                     None => continue,
                 },
             };

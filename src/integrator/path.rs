@@ -22,6 +22,7 @@ use crate::bsdf::{Lobe, BsdfContext};
 use crate::geometry::Ray;
 use crate::math::mis_power;
 use crate::sampler::Sampler;
+use crate::emitter::ShadingPoint;
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;
 
@@ -40,7 +41,7 @@ impl PathTracer {
         let mut eta = 1.0f32;
         let mut depth = 0u32;
         // The previous vertex, for MIS of emitters hit by BSDF sampling.
-        let mut prev_p = ray.o;
+        let mut prev = ShadingPoint::at(ray.o);
         let mut prev_pdf = 0.0f32;
         let mut prev_delta = true;
 
@@ -50,7 +51,7 @@ impl PathTracer {
             let Some(si) = hit else {
                 if visible {
                     if let Some(env) = scene.environment_radiance::<S>(ray.d, wl) {
-                        let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_environment(prev_p, ray.d)) };
+                        let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_environment(&prev, ray.d)) };
                         result += throughput * env * w;
                     }
                 }
@@ -58,7 +59,7 @@ impl PathTracer {
             };
             if visible {
                 if let Some(le) = scene.emitted::<S>(&si, wl) {
-                    let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_emitter_hit(prev_p, &si)) };
+                    let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_emitter_hit(&prev, &si)) };
                     result += throughput * le * w;
                 }
             }
@@ -91,7 +92,7 @@ impl PathTracer {
             let d = si.to_world(bs.wo);
             throughput *= bs.weight;
             eta *= bs.eta;
-            prev_p = si.p;
+            prev = ShadingPoint::from(&si);
             prev_pdf = bs.pdf;
             prev_delta = bs.lobe.intersects(Lobe::DELTA);
             ray = Ray::new(si.spawn_origin(d), d);
