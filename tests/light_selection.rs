@@ -179,6 +179,53 @@ fn every_emitter_kind_agrees_with_mitsuba() {
     check_image("tests/scenes/light-mix.xml", "tests/references/light-mix.exr", 16, 0.001);
 }
 
+/// The `direct` integrator (MIS of emitter and BSDF samples at one vertex):
+/// power and bvh against a uniform render of many more samples, whose own
+/// block error is estimated from the spread of its passes.
+#[test]
+fn direct_strategies_agree_with_uniform() {
+    let scene = "tests/scenes/light-mix.xml";
+    let text = |strategy: &str| {
+        let t = std::fs::read_to_string(repo(scene)).expect("scene file");
+        let (a, b) = (t.find(r#"<integrator type="path">"#).unwrap(), t.find("</integrator>").unwrap() + "</integrator>".len());
+        format!(r#"{}<integrator type="direct"><string name="light_sampling" value="{strategy}"/></integrator>{}"#, &t[..a], &t[b..])
+    };
+    let uniform = render_passes(&repo(scene), Some(&text("uniform")), params(&[("res", "64")]), 16, 64);
+    let reference = average(&uniform);
+    // The reference's largest relative standard error over 16×16 blocks.
+    let mut ref_rel_err = 0.0f64;
+    for by in 0..4 {
+        for bx in 0..4 {
+            let per_pass: Vec<[f64; 3]> = uniform
+                .iter()
+                .map(|img| {
+                    let mut m = [0.0f64; 3];
+                    for y in by * 16..by * 16 + 16 {
+                        for x in bx * 16..bx * 16 + 16 {
+                            let p = img.pixels[(y * 64 + x) as usize];
+                            for c in 0..3 {
+                                m[c] += p[c] as f64 / 256.0;
+                            }
+                        }
+                    }
+                    m
+                })
+                .collect();
+            for c in 0..3 {
+                let m = per_pass.iter().map(|p| p[c]).sum::<f64>() / 16.0;
+                let var = per_pass.iter().map(|p| (p[c] - m).powi(2)).sum::<f64>() / 15.0;
+                if m > 0.0 {
+                    ref_rel_err = ref_rel_err.max((var / 16.0).sqrt() / m);
+                }
+            }
+        }
+    }
+    for strategy in ["power", "bvh"] {
+        let passes = render_passes(&repo(scene), Some(&text(strategy)), params(&[("res", "64")]), 16, 16);
+        compare(&passes, &reference, 16, ref_rel_err).assert_unbiased(&format!("direct {strategy} vs uniform"), 0.015);
+    }
+}
+
 // ------------------------------------------------------------------ parameter
 
 fn scene_with_integrator(integrator: &str) -> String {

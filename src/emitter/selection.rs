@@ -139,6 +139,8 @@ struct LightBounds {
     w: Vec3,
     phi: f32,
     cos_o: f32,
+    /// sin θ_o, kept beside its cosine for [`LightBounds::importance`].
+    sin_o: f32,
     cos_e: f32,
 }
 
@@ -215,6 +217,10 @@ fn orientation_measure(cos_o: f32, cos_e: f32) -> f32 {
 }
 
 impl LightBounds {
+    fn new(lo: Vec3, hi: Vec3, w: Vec3, phi: f32, cos_o: f32, cos_e: f32) -> LightBounds {
+        LightBounds { lo, hi, w, phi, cos_o, sin_o: sin_of(cos_o), cos_e }
+    }
+
     fn union(&self, o: &LightBounds) -> LightBounds {
         if self.phi <= 0.0 {
             return *o;
@@ -223,14 +229,7 @@ impl LightBounds {
             return *self;
         }
         let (w, theta) = cone_union(self.w, self.cos_o.clamp(-1.0, 1.0).acos(), o.w, o.cos_o.clamp(-1.0, 1.0).acos());
-        LightBounds {
-            lo: self.lo.min(o.lo),
-            hi: self.hi.max(o.hi),
-            w,
-            phi: self.phi + o.phi,
-            cos_o: theta.cos(),
-            cos_e: self.cos_e.min(o.cos_e),
-        }
+        LightBounds::new(self.lo.min(o.lo), self.hi.max(o.hi), w, self.phi + o.phi, theta.cos(), self.cos_e.min(o.cos_e))
     }
 
     fn centroid(&self) -> Vec3 {
@@ -262,9 +261,8 @@ impl LightBounds {
             let sin2 = half_diag2 / dist2;
             (sin2.sqrt(), (1.0 - sin2).max(0.0).sqrt())
         };
-        let sin_o = sin_of(self.cos_o);
-        let cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, self.cos_o);
-        let sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, self.cos_o);
+        let cos_x = cos_sub_clamped(sin_w, cos_w, self.sin_o, self.cos_o);
+        let sin_x = sin_sub_clamped(sin_w, cos_w, self.sin_o, self.cos_o);
         let cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
         if cos_p <= self.cos_e {
             return 0.0;
@@ -342,10 +340,10 @@ fn bounds_of(e: &Emitter, shapes: &[Shape]) -> Option<LightBounds> {
                     (lo, hi, c.to_world.vector(Vec3::Z).normalize_or(Vec3::Z), 0.0)
                 }
             };
-            Some(LightBounds { lo, hi, w, phi, cos_o, cos_e: cos_half_pi })
+            Some(LightBounds::new(lo, hi, w, phi, cos_o, cos_half_pi))
         }
         Emitter::Point(l) => {
-            Some(LightBounds { lo: l.position, hi: l.position, w: Vec3::Z, phi: 4.0 * PI * rgb_flux(l.intensity.rgb.0), cos_o: -1.0, cos_e: cos_half_pi })
+            Some(LightBounds::new(l.position, l.position, Vec3::Z, 4.0 * PI * rgb_flux(l.intensity.rgb.0), -1.0, cos_half_pi))
         }
         Emitter::Spot(s) => {
             let (cutoff, beam) = (s.cos_cutoff.clamp(-1.0, 1.0).acos(), s.cos_beam_width.clamp(-1.0, 1.0).acos());
@@ -354,14 +352,14 @@ fn bounds_of(e: &Emitter, shapes: &[Shape]) -> Option<LightBounds> {
             // A small margin keeps the cone's edge inside (a delta light
             // must never get probability zero where it shines).
             let theta_e = (cutoff - beam).max(0.0) + 1e-3;
-            Some(LightBounds { lo: s.position, hi: s.position, w: s.axis, phi, cos_o: s.cos_beam_width, cos_e: theta_e.cos() })
+            Some(LightBounds::new(s.position, s.position, s.axis, phi, s.cos_beam_width, theta_e.cos()))
         }
         Emitter::Projector(p) => {
             let (pos, axis) = p.position_axis();
             let (tx, ty) = (p.tan_half_x, p.tan_half_x / p.aspect);
             let phi = PI * p.scale * texture_mean(&p.irradiance) * (2.0 * tx) * (2.0 * ty);
             let cos_o = 1.0 / (1.0 + tx * tx + ty * ty).sqrt();
-            Some(LightBounds { lo: pos, hi: pos, w: axis, phi, cos_o, cos_e: cos_half_pi })
+            Some(LightBounds::new(pos, pos, axis, phi, cos_o, cos_half_pi))
         }
         Emitter::Constant(_) | Emitter::EnvMap(_) | Emitter::Directional(_) => None,
     }
@@ -649,7 +647,7 @@ mod tests {
 
     #[test]
     fn importance_is_zero_behind_a_one_sided_light_and_positive_in_front() {
-        let b = LightBounds { lo: Vec3::new(-1.0, -1.0, 0.0), hi: Vec3::new(1.0, 1.0, 0.0), w: Vec3::Z, phi: 1.0, cos_o: 1.0, cos_e: 0.0 };
+        let b = LightBounds::new(Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::Z, 1.0, 1.0, 0.0);
         assert!(b.importance(&ShadingPoint { p: Vec3::new(0.3, 0.0, 2.0), n: -Vec3::Z }) > 0.0);
         assert!(b.importance(&ShadingPoint { p: Vec3::new(5.0, 0.0, 0.01), n: Vec3::Z }) > 0.0);
         assert_eq!(b.importance(&ShadingPoint { p: Vec3::new(0.0, 0.0, -2.0), n: Vec3::Z }), 0.0);
