@@ -139,9 +139,13 @@ struct LightBounds {
     w: Vec3,
     phi: f32,
     cos_o: f32,
-    /// sin θ_o, kept beside its cosine for [`LightBounds::importance`].
-    sin_o: f32,
     cos_e: f32,
+    /// Kept for [`LightBounds::importance`]: sin θ_o, the box's centre and
+    /// the radius of its bounding sphere (and its square).
+    sin_o: f32,
+    pc: Vec3,
+    r: f32,
+    r2: f32,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -218,7 +222,9 @@ fn orientation_measure(cos_o: f32, cos_e: f32) -> f32 {
 
 impl LightBounds {
     fn new(lo: Vec3, hi: Vec3, w: Vec3, phi: f32, cos_o: f32, cos_e: f32) -> LightBounds {
-        LightBounds { lo, hi, w, phi, cos_o, sin_o: sin_of(cos_o), cos_e }
+        let pc = (lo + hi) * 0.5;
+        let r2 = (hi - pc).length_squared();
+        LightBounds { lo, hi, w, phi, cos_o, cos_e, sin_o: sin_of(cos_o), pc, r: r2.sqrt(), r2 }
     }
 
     fn union(&self, o: &LightBounds) -> LightBounds {
@@ -233,7 +239,7 @@ impl LightBounds {
     }
 
     fn centroid(&self) -> Vec3 {
-        (self.lo + self.hi) * 0.5
+        self.pc
     }
 
     fn surface_area(&self) -> f32 {
@@ -245,31 +251,28 @@ impl LightBounds {
     /// module documentation); zero only where none of them can reach it.
     #[inline]
     fn importance(&self, at: &ShadingPoint) -> f32 {
-        let pc = self.centroid();
-        let v = at.p - pc;
+        let v = at.p - self.pc;
         let dist2 = v.length_squared();
-        let half_diag2 = (self.hi - pc).length_squared();
-        let d2 = dist2.max(half_diag2).max(1e-20);
+        if dist2 <= self.r2 {
+            // Inside the bounding sphere: every direction may reach p.
+            return self.phi / self.r2.max(1e-20);
+        }
         // Direction from the centre to the point; the angle it makes with
         // the cone's axis, reduced by the cone and by the box's extent.
-        let wi = if dist2 > 0.0 { v / dist2.sqrt() } else { self.w };
-        let cos_w = self.w.dot(wi).clamp(-1.0, 1.0);
+        let inv_dist = 1.0 / dist2.sqrt();
+        let cos_w = (self.w.dot(v) * inv_dist).clamp(-1.0, 1.0);
         let sin_w = sin_of(cos_w);
-        let (sin_b, cos_b) = if dist2 < half_diag2 || !(dist2 > 0.0) {
-            (0.0, -1.0)
-        } else {
-            let sin2 = half_diag2 / dist2;
-            (sin2.sqrt(), (1.0 - sin2).max(0.0).sqrt())
-        };
+        let sin_b = (self.r * inv_dist).min(1.0);
+        let cos_b = sin_of(sin_b);
         let cos_x = cos_sub_clamped(sin_w, cos_w, self.sin_o, self.cos_o);
         let sin_x = sin_sub_clamped(sin_w, cos_w, self.sin_o, self.cos_o);
         let cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
         if cos_p <= self.cos_e {
             return 0.0;
         }
-        let mut importance = self.phi * cos_p / d2;
+        let mut importance = self.phi * cos_p / dist2;
         if at.n != Vec3::ZERO {
-            let cos_i = wi.dot(at.n).abs().min(1.0);
+            let cos_i = (v.dot(at.n) * inv_dist).abs().min(1.0);
             importance *= cos_sub_clamped(sin_of(cos_i), cos_i, sin_b, cos_b);
         }
         importance.max(0.0)
@@ -520,7 +523,9 @@ impl LightSelector {
         loop {
             let nd = &self.nodes[node];
             if nd.leaf {
-                return (nd.bounds.importance(at) > 0.0).then_some((nd.index as usize, pmf, u));
+                // A child is only chosen with positive importance; the root
+                // (a single finite emitter) is checked here.
+                return (node != 0 || nd.bounds.importance(at) > 0.0).then_some((nd.index as usize, pmf, u));
             }
             let (first, second) = (node + 1, nd.index as usize);
             let c0 = self.nodes[first].bounds.importance(at);
@@ -570,7 +575,7 @@ impl LightSelector {
                 return 0.0;
             }
         }
-        if self.nodes[node].bounds.importance(at) > 0.0 { pmf } else { 0.0 }
+        if depth > 0 || self.nodes[node].bounds.importance(at) > 0.0 { pmf } else { 0.0 }
     }
 }
 
