@@ -375,10 +375,7 @@ impl Loader {
         }
         self.resolve_mesh_attributes()?;
         let accel = Accel::build_instanced(&self.shapes, &self.top_shapes, &self.groups, &self.instances);
-        let light_sampling = self.light_sampling.get().unwrap_or(match integrator {
-            Integrator::Particle(_) => LightSampling::Power,
-            _ => LightSampling::Bvh,
-        });
+        let light_sampling = self.light_sampling.get().unwrap_or(LightSampling::DEFAULT);
         let lights = LightSelector::new(light_sampling, &self.emitters, &self.shapes);
         Ok(Scene {
             bsdfs: self.bsdfs,
