@@ -18,7 +18,8 @@
 //!   bidirectional methods ([`EmissionSample`]).
 //!
 //! None of these include the probability of choosing the emitter: the scene
-//! picks one ([`crate::scene::Scene::select_emitter`]) and divides by it.
+//! picks one ([`crate::scene::Scene::select_emitter`], by the strategy of
+//! [`selection`]) and divides by it.
 
 pub mod area;
 pub mod constant;
@@ -26,6 +27,7 @@ pub mod directional;
 pub mod envmap;
 pub mod point;
 pub mod projector;
+pub mod selection;
 pub mod spot;
 
 pub use area::AreaLight;
@@ -34,6 +36,7 @@ pub use directional::DirectionalLight;
 pub use envmap::EnvironmentMap;
 pub use point::PointLight;
 pub use projector::Projector;
+pub use selection::{LightSampling, LightSelector, ShadingPoint};
 pub use spot::SpotLight;
 
 use crate::geometry::{Ray, SurfaceInteraction};

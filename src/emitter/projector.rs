@@ -63,6 +63,11 @@ impl Projector {
         }
     }
 
+    /// The pinhole's position and the unit axis it shines along.
+    pub fn position_axis(&self) -> (Vec3, Vec3) {
+        (self.position, self.axis)
+    }
+
     /// Image position of the local point (or direction) `l`, if in front of
     /// the projector and inside the image.
     #[inline]

@@ -90,6 +90,11 @@ impl SpotLight {
         }
     }
 
+    /// Mean of the projected texture (1 without one), for the light's flux.
+    pub fn texture_mean(&self) -> f32 {
+        self.texture.as_ref().map_or(1.0, |(t, _)| t.mean().max(0.0))
+    }
+
     /// Fraction of the axial intensity emitted in the unit direction `d`.
     #[inline]
     pub fn falloff(&self, d: Vec3) -> f32 {

@@ -21,6 +21,7 @@
 //! | `bsdf_samples` | integer | `shading_samples` | BSDF samples per camera ray |
 //! | `shading_samples` | integer | 1 | default for both |
 //! | `hide_emitters` | boolean | false | hide directly visible emitters (camera rays pass through emitting shapes) |
+//! | `light_sampling` | string | `uniform` | how emitters are chosen: `uniform`, `power`, `bvh` ([`crate::emitter::selection`]) |
 //!
 //! ```xml
 //! <integrator type="direct"><integer name="emitter_samples" value="4"/></integrator>
@@ -30,6 +31,7 @@ use crate::bsdf::{Lobe, BsdfContext};
 use crate::geometry::Ray;
 use crate::math::mis_power;
 use crate::sampler::Sampler;
+use crate::emitter::ShadingPoint;
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;
 
@@ -90,11 +92,11 @@ impl Direct {
             let delta = bs.lobe.intersects(Lobe::DELTA);
             let (le, em_pdf) = match scene.intersect_path(&ray, false, sampler) {
                 Some(hit) => match scene.emitted::<S>(&hit, wl) {
-                    Some(le) => (le, if delta { 0.0 } else { scene.pdf_emitter_hit(si.p, &hit) }),
+                    Some(le) => (le, if delta { 0.0 } else { scene.pdf_emitter_hit(&ShadingPoint::from(&si), &hit) }),
                     None => continue,
                 },
                 None => match scene.environment_radiance::<S>(d, wl) {
-                    Some(le) => (le, if delta { 0.0 } else { scene.pdf_environment(si.p, d) }),
+                    Some(le) => (le, if delta { 0.0 } else { scene.pdf_environment(&ShadingPoint::from(&si), d) }),
                     None => continue,
                 },
             };

@@ -13,6 +13,7 @@
 //! | `max_depth` | integer | -1 | longest path in segments; -1 = unlimited, 1 = emitters only, 2 = direct light |
 //! | `rr_depth` | integer | 5 | depth at which Russian roulette starts |
 //! | `hide_emitters` | boolean | false | hide directly visible emitters (camera rays pass through emitting shapes) |
+//! | `light_sampling` | string | `uniform` | how emitters are chosen: `uniform`, `power`, `bvh` ([`crate::emitter::selection`]) |
 //!
 //! ```xml
 //! <integrator type="path"><integer name="max_depth" value="8"/></integrator>
@@ -22,6 +23,7 @@ use crate::bsdf::{Lobe, BsdfContext};
 use crate::geometry::Ray;
 use crate::math::mis_power;
 use crate::sampler::Sampler;
+use crate::emitter::ShadingPoint;
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;
 
@@ -40,7 +42,7 @@ impl PathTracer {
         let mut eta = 1.0f32;
         let mut depth = 0u32;
         // The previous vertex, for MIS of emitters hit by BSDF sampling.
-        let mut prev_p = ray.o;
+        let mut prev = ShadingPoint::at(ray.o);
         let mut prev_pdf = 0.0f32;
         let mut prev_delta = true;
 
@@ -50,7 +52,7 @@ impl PathTracer {
             let Some(si) = hit else {
                 if visible {
                     if let Some(env) = scene.environment_radiance::<S>(ray.d, wl) {
-                        let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_environment(prev_p, ray.d)) };
+                        let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_environment(&prev, ray.d)) };
                         result += throughput * env * w;
                     }
                 }
@@ -58,7 +60,7 @@ impl PathTracer {
             };
             if visible {
                 if let Some(le) = scene.emitted::<S>(&si, wl) {
-                    let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_emitter_hit(prev_p, &si)) };
+                    let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_emitter_hit(&prev, &si)) };
                     result += throughput * le * w;
                 }
             }
@@ -91,7 +93,7 @@ impl PathTracer {
             let d = si.to_world(bs.wo);
             throughput *= bs.weight;
             eta *= bs.eta;
-            prev_p = si.p;
+            prev = ShadingPoint::from(&si);
             prev_pdf = bs.pdf;
             prev_delta = bs.lobe.intersects(Lobe::DELTA);
             ray = Ray::new(si.spawn_origin(d), d);

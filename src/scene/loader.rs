@@ -18,6 +18,7 @@ use crate::geometry::mesh_io;
 use crate::geometry::serialized;
 use crate::geometry::sphere::Sphere;
 use crate::geometry::{Shape, ShapeGeometry};
+use crate::emitter::{LightSampling, LightSelector};
 use crate::integrator::{Aov, AovKind, Direct, Integrator, Moment, ParticleTracer, PathTracer};
 use crate::math::Transform;
 use crate::sampler::SamplerSpec;
@@ -169,6 +170,9 @@ struct Loader {
     mesh_attribute_textures: std::cell::RefCell<Vec<(Arc<MeshAttributeTexture>, super::Location)>>,
     /// Film width forced by [`load_file_at_width`].
     film_width: Option<u32>,
+    /// The `light_sampling` an integrator named explicitly (the default
+    /// depends on the integrator).
+    light_sampling: std::cell::Cell<Option<LightSampling>>,
 }
 
 fn collect_ids(node: &Node, ids: &mut HashMap<String, Arc<Node>>) -> Result<()> {
@@ -262,6 +266,7 @@ impl Loader {
             in_group: false,
             mesh_attribute_textures: Default::default(),
             film_width: None,
+            light_sampling: Default::default(),
         })
     }
 
@@ -371,6 +376,8 @@ impl Loader {
         }
         self.resolve_mesh_attributes()?;
         let accel = Accel::build_instanced(&self.shapes, &self.top_shapes, &self.groups, &self.instances);
+        let light_sampling = self.light_sampling.get().unwrap_or(LightSampling::DEFAULT);
+        let lights = LightSelector::new(light_sampling, &self.emitters, &self.shapes);
         Ok(Scene {
             bsdfs: self.bsdfs,
             emitters: self.emitters,
@@ -383,6 +390,7 @@ impl Loader {
             environment: self.environment,
             warnings: self.warnings.into_inner(),
             pass_through: self.shapes.iter().any(|s| s.pass_through),
+            lights,
             shapes: self.shapes,
         })
     }
@@ -1066,6 +1074,7 @@ impl Loader {
                 let shading = props.int_checked("shading_samples", 1, |v| (0..=1024).contains(&v), "between 0 and 1024")?;
                 let emitter_samples = props.int_checked("emitter_samples", shading, |v| (0..=1024).contains(&v), "between 0 and 1024")?;
                 let bsdf_samples = props.int_checked("bsdf_samples", shading, |v| (0..=1024).contains(&v), "between 0 and 1024")?;
+                self.light_sampling(&props, &LightSampling::NAMES)?;
                 Integrator::Direct(Direct {
                     emitter_samples: emitter_samples as u32,
                     bsdf_samples: bsdf_samples as u32,
@@ -1075,6 +1084,7 @@ impl Loader {
             "path" => {
                 let max_depth = props.int_checked("max_depth", -1, |v| v >= -1, "-1 (unlimited) or a non-negative integer")?;
                 let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
+                self.light_sampling(&props, &LightSampling::NAMES)?;
                 Integrator::Path(PathTracer {
                     max_depth: self.depth_limit(&props, "max_depth", max_depth),
                     rr_depth: self.depth_limit(&props, "rr_depth", rr_depth),
@@ -1086,6 +1096,9 @@ impl Loader {
                 let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
                 // Mitsuba's work-splitting knob: no effect on the image.
                 props.int_checked("samples_per_pass", 1, |v| v > 0, "positive")?;
+                // Light paths start before there is a shading point to weigh
+                // emitters by: no bvh.
+                self.light_sampling(&props, &["uniform", "power"])?;
                 Integrator::Particle(ParticleTracer {
                     max_depth: self.depth_limit(&props, "max_depth", max_depth),
                     rr_depth: self.depth_limit(&props, "rr_depth", rr_depth),
@@ -1096,6 +1109,24 @@ impl Loader {
         };
         props.finish()?;
         Ok((integrator, false))
+    }
+
+    /// Reads an integrator's `light_sampling` (one of `choices`) if given;
+    /// integrators nested in one scene must not ask for different ones.
+    fn light_sampling(&self, props: &Props, choices: &[&str]) -> Result<()> {
+        let Some(_) = props.string_opt("light_sampling")? else { return Ok(()) };
+        let name = props.choice("light_sampling", "", choices)?;
+        let Some(strategy) = LightSampling::from_name(name) else { return Ok(()) };
+        match self.light_sampling.get() {
+            Some(previous) if previous != strategy => Err(props.error_at(
+                "light_sampling",
+                format!("light_sampling \"{name}\" differs from the \"{}\" another integrator of this scene asks for", previous.name()),
+            )),
+            _ => {
+                self.light_sampling.set(Some(strategy));
+                Ok(())
+            }
+        }
     }
 
     /// The integrators nested in an `aov` or `moment` integrator, with their

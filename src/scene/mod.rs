@@ -24,6 +24,7 @@ use crate::geometry::ray::offset_origin;
 use crate::geometry::{Ray, Shape, SurfaceInteraction};
 use crate::integrator::Integrator;
 use crate::emitter::Emitter;
+use crate::emitter::{LightSampling, LightSelector, ShadingPoint};
 use crate::math::SHADOW_EPSILON;
 use crate::sampler::{Sampler, SamplerSpec};
 use crate::sensor::Camera;
@@ -54,6 +55,8 @@ pub struct Scene {
     /// `null`). When none does, rays take the plain closest-hit and any-hit
     /// paths and no random number is spent on pass-through.
     pub pass_through: bool,
+    /// How emitters are chosen for next-event estimation and light paths.
+    pub lights: LightSelector,
 }
 
 /// Most surfaces a ray passes through before it gives up (a guard against
@@ -192,44 +195,55 @@ impl Scene {
         Some(self.emitters[self.environment? as usize].eval(Arrival::Escaped(d), wl))
     }
 
-    /// Picks an emitter for `u` in [0, 1): its index, the probability of
-    /// that choice, and `u` re-scaled to [0, 1) within the choice (uniform).
+    /// Picks an emitter for `u` in [0, 1) to light the shading point `at`
+    /// (by the scene's [`LightSampling`] strategy): its index, the
+    /// probability of that choice, and `u` re-scaled to [0, 1) within it.
     #[inline]
-    pub fn select_emitter(&self, u: f32) -> Option<(usize, f32, f32)> {
-        let n = self.emitters.len();
-        if n == 0 {
-            return None;
-        }
-        let scaled = u * n as f32;
-        let index = (scaled as usize).min(n - 1);
-        Some((index, self.emitter_pmf(index), (scaled - index as f32).min(1.0 - f32::EPSILON)))
+    pub fn select_emitter(&self, u: f32, at: &ShadingPoint) -> Option<(usize, f32, f32)> {
+        self.lights.select(u, at)
     }
 
-    /// The probability with which [`Scene::select_emitter`] picks emitter `index`.
+    /// The probability with which [`Scene::select_emitter`] picks emitter
+    /// `index` for the shading point `at`.
     #[inline]
-    pub fn emitter_pmf(&self, _index: usize) -> f32 {
-        1.0 / self.emitters.len() as f32
+    pub fn emitter_pmf(&self, index: usize, at: &ShadingPoint) -> f32 {
+        self.lights.pmf(index, at)
     }
 
-    /// Solid-angle density with which emitter sampling from `p` would pick
-    /// the area-light point `hit` (selection included).
-    pub fn pdf_emitter_hit(&self, p: Vec3, hit: &SurfaceInteraction) -> f32 {
+    /// Chooses how emitters are selected from now on (rebuilding the
+    /// selector; the loader sets it from the integrator's `light_sampling`).
+    pub fn set_light_sampling(&mut self, strategy: LightSampling) {
+        self.lights = LightSelector::new(strategy, &self.emitters, &self.shapes);
+    }
+
+    /// Solid-angle density with which emitter sampling from the shading
+    /// point `from` would pick the area-light point `hit` (selection
+    /// included, with the probability it has at `from`).
+    pub fn pdf_emitter_hit(&self, from: &ShadingPoint, hit: &SurfaceInteraction) -> f32 {
         let Some(e) = self.shapes[hit.shape as usize].emitter else { return 0.0 };
-        self.emitters[e as usize].pdf_direction(self, p, Arrival::Surface(hit)) * self.emitter_pmf(e as usize)
+        let pmf = self.emitter_pmf(e as usize, from);
+        if !(pmf > 0.0) {
+            return 0.0;
+        }
+        self.emitters[e as usize].pdf_direction(self, from.p, Arrival::Surface(hit)) * pmf
     }
 
-    /// Density with which emitter sampling from `p` would pick the
-    /// environment in the unit direction `d` (selection included).
-    pub fn pdf_environment(&self, p: Vec3, d: Vec3) -> f32 {
+    /// Density with which emitter sampling from the shading point `from`
+    /// would pick the environment in the unit direction `d` (selection included).
+    pub fn pdf_environment(&self, from: &ShadingPoint, d: Vec3) -> f32 {
         let Some(e) = self.environment else { return 0.0 };
-        self.emitters[e as usize].pdf_direction(self, p, Arrival::Escaped(d)) * self.emitter_pmf(e as usize)
+        let pmf = self.emitter_pmf(e as usize, from);
+        if !(pmf > 0.0) {
+            return 0.0;
+        }
+        self.emitters[e as usize].pdf_direction(self, from.p, Arrival::Escaped(d)) * pmf
     }
 
     /// Picks an emitter, then a direction towards it, and tests visibility
     /// with a shadow ray. `None` if nothing arrives. Weight and pdf include
     /// the selection.
     pub fn sample_emitter<S: Spectrum>(&self, si: &SurfaceInteraction, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
-        let (index, pmf, ux) = self.select_emitter(u.x)?;
+        let (index, pmf, ux) = self.select_emitter(u.x, &ShadingPoint::from(si))?;
         let mut sample = self.emitters[index].sample_direction::<S>(self, si.p, Vec2::new(ux, u.y), wl)?;
         sample.weight = sample.weight / pmf;
         sample.pdf *= pmf;
@@ -258,11 +272,12 @@ impl Scene {
         Some(sample)
     }
 
-    /// Starts a light path (particle tracing): picks an emitter, a point on
-    /// it and a direction leaving it ([`Emitter::sample_ray`]); weights
-    /// include the selection. `None` for emitters a light path cannot start from.
+    /// Starts a light path (particle tracing): picks an emitter (uniformly
+    /// for `uniform` light sampling, else by power: there is no shading
+    /// point yet), a point on it and a direction leaving it
+    /// ([`Emitter::sample_ray`]); weights include the selection. `None` for emitters a light path cannot start from.
     pub fn sample_emission<S: Spectrum>(&self, u_pick: f32, u_pos: Vec2, u_dir: Vec2, wl: &S::Wavelengths) -> Option<EmissionSample<S>> {
-        let (index, pmf, _) = self.select_emitter(u_pick)?;
+        let (index, pmf, _) = self.lights.select_emission(u_pick)?;
         let mut em = self.emitters[index].sample_ray::<S>(self, u_pos, u_dir, wl)?;
         em.weight = em.weight / pmf;
         em.position_weight = em.position_weight.map(|w| w / pmf);

@@ -1,0 +1,289 @@
+//! Light selection (`light_sampling` = uniform, power, bvh): the selection
+//! probabilities are a distribution that selection follows exactly, and the
+//! images of every strategy agree with Mitsuba's (which selects uniformly).
+
+mod common;
+use common::*;
+use glam::{Vec2, Vec3};
+use snell::emitter::{LightSampling, ShadingPoint};
+use snell::film::output::read_exr;
+use snell::{LoadOptions, Scene};
+
+const STRATEGIES: [&str; 3] = ["uniform", "power", "bvh"];
+
+/// `scene`'s text with its path integrator asked for `strategy`.
+fn with_strategy(scene: &str, strategy: &str) -> String {
+    let text = std::fs::read_to_string(repo(scene)).expect("scene file");
+    let tag = r#"<integer name="max_depth" value="$max_depth"/>"#;
+    assert!(text.contains(tag), "{scene} has no max_depth line to add light_sampling after");
+    text.replacen(tag, &format!(r#"{tag}<string name="light_sampling" value="{strategy}"/>"#), 1)
+}
+
+fn load(scene: &str, strategy: &str) -> Scene {
+    snell::load_str(&repo(scene), &with_strategy(scene, strategy), &LoadOptions::default()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// A small deterministic generator for test points.
+struct Lcg(u64);
+impl Lcg {
+    fn next(&mut self) -> f32 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((self.0 >> 40) as f32) / (1u64 << 24) as f32
+    }
+}
+
+/// Shading points: surface points seen through random pixels (shading
+/// normals), and random points in the scene's box with random or no normals.
+fn shading_points(scene: &Scene, n: usize) -> Vec<ShadingPoint> {
+    let mut r = Lcg(42);
+    let mut out = vec![];
+    let (lo, hi) = (Vec3::new(-6.0, -0.5, -6.0), Vec3::new(6.0, 3.0, 6.0));
+    while out.len() < n {
+        let k = out.len();
+        if k % 2 == 0 {
+            let film = Vec2::new(r.next(), r.next());
+            let ray = scene.camera.generate_ray(film);
+            if let Some(si) = scene.intersect(&ray) {
+                out.push(ShadingPoint::from(&si));
+            }
+        } else {
+            let p = lo + (hi - lo) * Vec3::new(r.next(), r.next(), r.next());
+            let n = if k % 4 == 1 { Vec3::ZERO } else { Vec3::new(r.next() - 0.5, r.next() - 0.5, r.next() - 0.5).normalize_or_zero() };
+            out.push(ShadingPoint { p, n });
+        }
+    }
+    out
+}
+
+/// For every strategy and shading point: Σ pmf = the fraction of u in [0, 1)
+/// for which selection succeeds (1 for uniform and power; for bvh, mass
+/// is lost only where no emitter of a subtree can reach the point), and
+/// every emitter is selected on an interval of u of length exactly its pmf,
+/// with the pmf that `emitter_pmf` gives.
+fn check_pmf(scene_file: &str) {
+    const N: usize = 20_000;
+    for strategy in STRATEGIES {
+        let scene = load(scene_file, strategy);
+        assert_eq!(scene.lights.strategy().name(), strategy);
+        let emitters = scene.emitters.len();
+        let mut full = 0;
+        let points = shading_points(&scene, 200);
+        for at in &points {
+            let pmfs: Vec<f32> = (0..emitters).map(|i| scene.emitter_pmf(i, at)).collect();
+            let sum: f64 = pmfs.iter().map(|&p| p as f64).sum();
+            let mut counts = vec![0usize; emitters];
+            for k in 0..N {
+                let u = (k as f32 + 0.5) / N as f32;
+                if let Some((i, pmf, u2)) = scene.select_emitter(u, at) {
+                    assert!((0.0..1.0).contains(&u2), "{strategy}: re-scaled u {u2}");
+                    assert!(pmf > 0.0 && (pmf - pmfs[i]).abs() <= 1e-5 * pmfs[i].max(1e-3), "{strategy} at {at:?}: emitter {i} selected with pmf {pmf}, emitter_pmf says {}", pmfs[i]);
+                    counts[i] += 1;
+                }
+            }
+            for i in 0..emitters {
+                let expected = pmfs[i] as f64 * N as f64;
+                assert!((counts[i] as f64 - expected).abs() <= 2.0 + 1e-3 * expected, "{strategy} at {at:?}: emitter {i} chosen {} times in {N}, pmf {} expects {expected:.1}", counts[i], pmfs[i]);
+            }
+            let selected = counts.iter().sum::<usize>() as f64 / N as f64;
+            assert!(sum <= 1.0 + 1e-4, "{strategy} at {at:?}: Σ pmf = {sum}");
+            assert!((sum - selected).abs() <= (emitters as f64 + 2.0) / N as f64, "{strategy} at {at:?}: Σ pmf = {sum}, selection succeeds for {selected}");
+            if strategy != "bvh" {
+                assert!((sum - 1.0).abs() < 1e-4, "{strategy}: Σ pmf = {sum}");
+            }
+            if (sum - 1.0).abs() < 1e-4 {
+                full += 1;
+            }
+        }
+        eprintln!("{scene_file} {strategy}: Σ pmf = 1 at {full} of {} shading points", points.len());
+        // Points seen by the camera nearly always have some emitter of every
+        // subtree in reach.
+        assert!(full * 10 >= points.len() * 6, "{strategy}: Σ pmf = 1 at only {full} of {} points", points.len());
+    }
+}
+
+#[test]
+fn pmf_many_lights() {
+    check_pmf("scenes/many-lights.xml");
+}
+
+#[test]
+fn pmf_every_emitter_kind() {
+    check_pmf("tests/scenes/light-mix.xml");
+}
+
+#[test]
+fn power_selection_follows_flux() {
+    // The mixed scene's finite emitters in proportion to their flux; the
+    // constant environment (emitter 0) gets 1 / (1 + 1).
+    let scene = load("tests/scenes/light-mix.xml", "power");
+    let at = ShadingPoint::at(Vec3::ZERO);
+    assert!((scene.emitter_pmf(0, &at) - 0.5).abs() < 1e-6);
+    // Point light (intensity mean 11.2/3): Φ = 4π I; spot: I · 2π(1 − (cos 25° + cos 15°)/2).
+    let n = scene.emitters.len();
+    let (point, spot) = (n - 2, n - 1);
+    let phi_point = 4.0 * std::f32::consts::PI * (4.0 + 4.0 + 3.2) / 3.0;
+    let omega = 2.0 * std::f32::consts::PI * (1.0 - 0.5 * (25f32.to_radians().cos() + 15f32.to_radians().cos()));
+    let phi_spot = (30.0 + 25.0 + 20.0) / 3.0 * omega;
+    let ratio = scene.emitter_pmf(spot, &at) / scene.emitter_pmf(point, &at);
+    assert!((ratio - phi_spot / phi_point).abs() < 1e-3 * ratio, "{ratio} vs {}", phi_spot / phi_point);
+    // The ceiling panel (emitter 1): a 0.4 × 0.4 square of mean radiance 25: Φ = π · 25 · 0.16.
+    let phi_panel = std::f32::consts::PI * 25.0 * 0.16;
+    let ratio = scene.emitter_pmf(1, &at) / scene.emitter_pmf(point, &at);
+    assert!((ratio - phi_panel / phi_point).abs() < 1e-3 * ratio, "{ratio} vs {}", phi_panel / phi_point);
+}
+
+#[test]
+fn bvh_prefers_near_lights() {
+    // Right under a light of the many-light scene, that light is far more
+    // likely than under power selection.
+    let bvh = load("scenes/many-lights.xml", "bvh");
+    let power = load("scenes/many-lights.xml", "power");
+    let (mut gained, mut gains) = (0, vec![]);
+    for (i, e) in bvh.emitters.iter().enumerate() {
+        let snell::emitter::Emitter::Area(a) = e else { continue };
+        let Some(ps) = bvh.shapes[a.shape as usize].sample_position(Vec2::splat(0.5)) else { continue };
+        let at = ShadingPoint { p: ps.p - Vec3::Y * 0.1, n: Vec3::Y };
+        let gain = bvh.emitter_pmf(i, &at) / power.emitter_pmf(i, &at);
+        if gain > 5.0 {
+            gained += 1;
+        }
+        gains.push(gain);
+    }
+    gains.sort_by(f32::total_cmp);
+    eprintln!("bvh / power probability of the light overhead: min {} median {} max {}", gains[0], gains[50], gains[99]);
+    // (The brightest lights are likely under power selection already.)
+    assert!(gained >= 80, "bvh favours the light overhead by 5× at only {gained} of 100 lights");
+    assert!(gains[50] > 10.0 && gains[0] > 1.0, "gains: min {} median {}", gains[0], gains[50]);
+}
+
+/// The image of every strategy against Mitsuba's, block by block;
+/// `ref_rel_err` is the reference's relative error per 16×16 block
+/// (tests/references/README.md gives it per pixel: 1.7e-2 for
+/// many-lights, 6.1e-3 for light-mix, over √256 pixels).
+/// `spp` per pass for bvh; uniform and power get `noisy_spp`, so that their
+/// heavy-tailed block means (a rare, bright emitter chosen with a small
+/// probability) are near-normal in every pass.
+fn check_image(scene: &str, reference: &str, spp: u32, noisy_spp: u32, ref_rel_err: f64) {
+    let reference = read_exr(&repo(reference)).expect("reference EXR");
+    for strategy in STRATEGIES {
+        let text = with_strategy(scene, strategy);
+        let spp = if strategy == "bvh" { spp } else { noisy_spp };
+        let passes = render_passes(&repo(scene), Some(&text), params(&[("res", "64")]), 16, spp);
+        compare(&passes, &reference, 16, ref_rel_err).assert_unbiased(&format!("{scene} ({strategy})"), 0.015);
+    }
+}
+
+#[test]
+fn many_lights_agree_with_mitsuba() {
+    check_image("scenes/many-lights.xml", "tests/references/many-lights.exr", 32, 32, 0.0015);
+}
+
+#[test]
+fn every_emitter_kind_agrees_with_mitsuba() {
+    check_image("tests/scenes/light-mix.xml", "tests/references/light-mix.exr", 16, 16, 0.001);
+}
+
+/// The `direct` integrator (MIS of emitter and BSDF samples at one vertex):
+/// power and bvh against a uniform render of many more samples, whose own
+/// block error is estimated from the spread of its passes.
+#[test]
+fn direct_strategies_agree_with_uniform() {
+    let scene = "tests/scenes/light-mix.xml";
+    let text = |strategy: &str| {
+        let t = std::fs::read_to_string(repo(scene)).expect("scene file");
+        let (a, b) = (t.find(r#"<integrator type="path">"#).unwrap(), t.find("</integrator>").unwrap() + "</integrator>".len());
+        format!(r#"{}<integrator type="direct"><string name="light_sampling" value="{strategy}"/></integrator>{}"#, &t[..a], &t[b..])
+    };
+    let uniform = render_passes(&repo(scene), Some(&text("uniform")), params(&[("res", "64")]), 16, 64);
+    let reference = average(&uniform);
+    // The reference's largest relative standard error over 16×16 blocks.
+    let mut ref_rel_err = 0.0f64;
+    for by in 0..4 {
+        for bx in 0..4 {
+            let per_pass: Vec<[f64; 3]> = uniform
+                .iter()
+                .map(|img| {
+                    let mut m = [0.0f64; 3];
+                    for y in by * 16..by * 16 + 16 {
+                        for x in bx * 16..bx * 16 + 16 {
+                            let p = img.pixels[(y * 64 + x) as usize];
+                            for c in 0..3 {
+                                m[c] += p[c] as f64 / 256.0;
+                            }
+                        }
+                    }
+                    m
+                })
+                .collect();
+            for c in 0..3 {
+                let m = per_pass.iter().map(|p| p[c]).sum::<f64>() / 16.0;
+                let var = per_pass.iter().map(|p| (p[c] - m).powi(2)).sum::<f64>() / 15.0;
+                if m > 0.0 {
+                    ref_rel_err = ref_rel_err.max((var / 16.0).sqrt() / m);
+                }
+            }
+        }
+    }
+    for strategy in ["power", "bvh"] {
+        let passes = render_passes(&repo(scene), Some(&text(strategy)), params(&[("res", "64")]), 16, 16);
+        compare(&passes, &reference, 16, ref_rel_err).assert_unbiased(&format!("direct {strategy} vs uniform"), 0.015);
+    }
+}
+
+// ------------------------------------------------------------------ parameter
+
+fn scene_with_integrator(integrator: &str) -> String {
+    format!(
+        r#"<scene version="3.0.0">
+    {integrator}
+    <sensor type="perspective">
+        <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film>
+    </sensor>
+    <shape type="sphere"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
+</scene>
+"#
+    )
+}
+
+fn load_text(text: &str) -> Result<Scene, snell::SceneError> {
+    snell::load_str(std::path::Path::new("light-sampling.xml"), text, &LoadOptions::default())
+}
+
+#[test]
+fn light_sampling_defaults_and_choices() {
+    let default = load_text(&scene_with_integrator(r#"<integrator type="path"/>"#)).unwrap();
+    assert_eq!(default.lights.strategy(), LightSampling::Uniform);
+    let ptracer = load_text(&scene_with_integrator(r#"<integrator type="ptracer"/>"#)).unwrap();
+    assert_eq!(ptracer.lights.strategy(), LightSampling::Uniform);
+    for (integrator, name) in [("direct", "bvh"), ("path", "power"), ("ptracer", "power"), ("path", "bvh")] {
+        let s = load_text(&scene_with_integrator(&format!(
+            r#"<integrator type="{integrator}"><string name="light_sampling" value="{name}"/></integrator>"#
+        )))
+        .unwrap();
+        assert_eq!(s.lights.strategy().name(), name);
+    }
+}
+
+#[test]
+fn bad_light_sampling_is_a_located_error_listing_the_choices() {
+    let text = scene_with_integrator(r#"<integrator type="path"><string name="light_sampling" value="random"/></integrator>"#);
+    let e = load_text(&text).err().expect("an error");
+    let shown = e.to_string();
+    assert_eq!(e.location.as_ref().map(|l| l.line), Some(2), "{shown}");
+    assert!(shown.contains("\"random\" is not a valid value of \"light_sampling\""), "{shown}");
+    for c in ["uniform", "power", "bvh"] {
+        assert!(shown.contains(c), "{shown}");
+    }
+    // Light paths have no shading point to weigh emitters by.
+    let text = scene_with_integrator(r#"<integrator type="ptracer"><string name="light_sampling" value="bvh"/></integrator>"#);
+    let shown = load_text(&text).err().expect("an error").to_string();
+    assert!(shown.contains("uniform") && shown.contains("power") && shown.contains("light-sampling.xml:2:"), "{shown}");
+    // Nested integrators must agree.
+    let text = scene_with_integrator(
+        r#"<integrator type="aov"><string name="aovs" value="d:depth"/>
+        <integrator type="path" name="a"><string name="light_sampling" value="power"/></integrator>
+        <integrator type="direct" name="b"><string name="light_sampling" value="bvh"/></integrator></integrator>"#,
+    );
+    let shown = load_text(&text).err().expect("an error").to_string();
+    assert!(shown.contains("differs") && shown.contains(":4:"), "{shown}");
+}
