@@ -93,3 +93,37 @@ fn a_polarizer_extinguishes_one_copy_then_the_other() {
     // Malus: cos² 45° = ½ of each.
     assert!((o_d / o_open - 0.5).abs() < 0.05 && (e_d / e_open - 0.5).abs() < 0.05, "{o_d} {e_d}");
 }
+
+/// A white furnace: a calcite sphere (optic axis tilted) alone in a
+/// uniform white sky renders 1 — no light created or lost at any interface,
+/// and the radiance scaling of each ray (o and e, by the curvature of its
+/// wave surface) consistent along every path, however it splits.
+#[test]
+fn a_birefringent_sphere_in_a_white_furnace_renders_one() {
+    let text = furnace(
+        r#"<shape type="sphere"><float name="radius" value="1"/>
+            <bsdf type="birefringent"><string name="ordinary_ior" value="calcite"/><string name="extraordinary_ior" value="calcite"/>
+                <vector name="optic_axis" x="1" y="0.5" z="0.7"/></bsdf></shape>"#,
+        32,
+        24,
+    );
+    let path = std::path::Path::new("furnace.xml");
+    for polarized in [false, true] {
+        let img = if polarized {
+            average(&render_passes_as::<Polarized<Rgb>>(path, Some(&text), params(&[]), 1, 256))
+        } else {
+            average(&render_passes_as::<Rgb>(path, Some(&text), params(&[]), 1, 256))
+        };
+        let m = mean(&img);
+        // Rows of 32 pixels: each row's mean is 1 too (the sphere covers the middle).
+        let worst_row = (0..img.height as usize)
+            .map(|y| {
+                let row = &img.pixels[y * img.width as usize..(y + 1) * img.width as usize];
+                (row.iter().map(|p| p.mean() as f64).sum::<f64>() / row.len() as f64 - 1.0).abs()
+            })
+            .fold(0.0, f64::max);
+        println!("furnace, polarized {polarized}: mean {m:?}, worst row off by {worst_row:.4}");
+        assert!(m.iter().all(|v| (v - 1.0).abs() < 0.01), "polarized {polarized}: mean {m:?}");
+        assert!(worst_row < 0.04, "polarized {polarized}: a row off by {worst_row}");
+    }
+}
