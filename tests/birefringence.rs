@@ -127,3 +127,21 @@ fn a_birefringent_sphere_in_a_white_furnace_renders_one() {
         assert!(worst_row < 0.04, "polarized {polarized}: a row off by {worst_row}");
     }
 }
+
+/// Bad parameters are located errors that say what is valid.
+#[test]
+fn bad_crystal_parameters_are_located_errors() {
+    let load = |bsdf: &str| {
+        let text = format!("<scene version=\"3.0.0\">\n<shape type=\"sphere\">\n{bsdf}\n</shape>\n</scene>");
+        match snell::load_str(std::path::Path::new("crystal.xml"), &text, &snell::LoadOptions::default()) {
+            Ok(_) => panic!("{bsdf} loaded"),
+            Err(e) => e.to_string(),
+        }
+    };
+    let e = load(r#"<bsdf type="birefringent"><string name="ordinary_ior" value="calcit"/></bsdf>"#);
+    assert!(e.contains("crystal.xml:3") && e.contains("calcit") && e.contains("quartz") && e.contains("sapphire"), "{e}");
+    let e = load(r#"<bsdf type="birefringent"><vector name="optic_axis" x="0" y="0" z="0"/></bsdf>"#);
+    assert!(e.contains("crystal.xml:3") && e.contains("optic_axis"), "{e}");
+    let e = load(r#"<bsdf type="birefringent"><string name="extraordinary_ior" value="cauchy(1.5)"/></bsdf>"#);
+    assert!(e.contains("2 coefficients"), "{e}");
+}
