@@ -1031,6 +1031,39 @@ mod tests {
     }
 
     #[test]
+    fn spectral_modes_disperse_each_index() {
+        use crate::spectrum::Sampled;
+        let white = Texture::constant(Rgb::WHITE);
+        let (o, e) = (crystal_index("calcite", false).unwrap(), crystal_index("calcite", true).unwrap());
+        let b = Birefringent::new(o.clone(), e.clone(), IorSpectrum::Constant(1.0), Vec3::new(1.0, 0.0, 1.0), white.clone(), white.clone());
+        assert!(b.disperses());
+        let constant = Birefringent::new(IorSpectrum::Constant(1.66), IorSpectrum::Constant(1.49), IorSpectrum::Constant(1.0), Vec3::Z, white.clone(), white);
+        assert!(!constant.disperses());
+        // RGB uses the d line; spectral modes the hero wavelength, and the
+        // walk-off at normal incidence follows each index at that wavelength.
+        assert_eq!(b.indices::<Rgb>(&()), (1.0, o.nominal() as f64, e.nominal() as f64));
+        let si = dummy_interaction();
+        let ctx = BsdfContext::RADIANCE.with_lobes(Lobe::DELTA_TRANSMISSION);
+        let mut walk_offs = vec![];
+        for u in [0.05f32, 0.5, 0.95] {
+            let wl = Sampled::sample_wavelengths(u);
+            let lambda = Sampled::hero_wavelength(&wl).unwrap();
+            let (_, n_o, n_e) = b.indices::<Sampled>(&wl);
+            assert_eq!((n_o as f32, n_e as f32), (o.eval(lambda), e.eval(lambda)));
+            let s = (0..50)
+                .filter_map(|i| Bsdf::Birefringent(b.clone()).sample::<Sampled>(&ctx, &si, si.to_local(Vec3::Z), (i as f32 + 0.5) / 50.0, Vec2::ZERO, &wl))
+                .find(|s| s.lobe.contains(Lobe::EXTRAORDINARY))
+                .unwrap();
+            let rho = si.to_world(s.wo).dot(-Vec3::Z).acos() as f64;
+            let closed = ((n_o * n_o - n_e * n_e) * 0.5 / (0.5 * (n_o * n_o + n_e * n_e))).atan();
+            assert!((rho - closed).abs() < 1e-5, "{lambda} nm: {rho} vs {closed}");
+            walk_offs.push((lambda, rho));
+        }
+        walk_offs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        assert!(walk_offs[0].1 > walk_offs[2].1, "calcite's birefringence falls with the wavelength: {walk_offs:?}");
+    }
+
+    #[test]
     fn radiance_scaling_is_reciprocal_across_the_interface() {
         // Entering and leaving along the same e-wave, the étendue factors cancel.
         let c = calcite(DVec3::new(0.3, 0.7, 0.5));
