@@ -71,7 +71,7 @@ pub fn prepare(scene: &Scene, mode: Mode, what: &str) -> anyhow::Result<()> {
     if mode.polarized() {
         if let Some(b) = scene.bsdfs.iter().find(|b| !b.has_mueller_model()) {
             anyhow::bail!(
-                "{what}: the polarized modes support diffuse, dielectric, thindielectric, conductor, plastic, polarizer, retarder, roughconductor, roughdielectric and roughplastic BSDFs (and twosided of them); this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
+                "{what}: the polarized modes support diffuse, dielectric, thindielectric, conductor, plastic, polarizer, retarder, roughconductor, roughdielectric, roughplastic and birefringent BSDFs (and twosided of them); this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
                 b.plugin()
             );
         }

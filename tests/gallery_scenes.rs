@@ -18,7 +18,7 @@ fn every_bundled_scene_loads_and_renders() {
         .collect();
     scenes.sort();
     // The README's gallery: these must stay.
-    for name in ["cornell-box", "caustic-cornell-box", "snells-window", "glass-of-water", "metal-showcase", "prism", "diamond", "pool", "pool-polarizer"] {
+    for name in ["cornell-box", "caustic-cornell-box", "snells-window", "glass-of-water", "metal-showcase", "prism", "diamond", "pool", "pool-polarizer", "calcite"] {
         assert!(scenes.iter().any(|p| p.file_stem().is_some_and(|s| s == name)), "scenes/{name}.xml is missing");
     }
     for path in &scenes {

@@ -30,6 +30,7 @@
 //!   parameter table in its file's doc; `scene/loader.rs` only maps plugin
 //!   names to models.
 
+pub mod birefringent;
 pub mod blendbsdf;
 pub mod bumpmap;
 pub mod conductor;
@@ -55,6 +56,7 @@ pub mod roughplastic;
 pub mod thindielectric;
 pub mod twosided;
 
+pub use birefringent::Birefringent;
 pub use blendbsdf::BlendBsdf;
 pub use bumpmap::BumpMap;
 pub use conductor::Conductor;
@@ -92,6 +94,10 @@ bitflags! {
         /// Straight pass-through (Mitsuba's `Null`): the surface is not
         /// there for this fraction of rays (`mask`, `null`).
         const NULL = 1 << 6;
+        /// Marks a delta sample after which the path travels inside a
+        /// birefringent crystal as its extraordinary ray (`birefringent`);
+        /// integrators hand it back in [`BsdfContext::extraordinary`].
+        const EXTRAORDINARY = 1 << 7;
         const DIFFUSE = Self::DIFFUSE_REFLECTION.bits() | Self::DIFFUSE_TRANSMISSION.bits();
         const GLOSSY = Self::GLOSSY_REFLECTION.bits() | Self::GLOSSY_TRANSMISSION.bits();
         const DELTA = Self::DELTA_REFLECTION.bits() | Self::DELTA_TRANSMISSION.bits();
@@ -128,6 +134,10 @@ pub struct BsdfContext {
     pub mode: TransportMode,
     /// The lobes to evaluate, give a density to, or sample; others are left out.
     pub lobes: Lobe,
+    /// Whether the path's segment on the side of `wi` is a birefringent
+    /// crystal's extraordinary ray (set by [`BsdfContext::following`]);
+    /// only `birefringent` reads it.
+    pub extraordinary: bool,
 }
 
 impl Default for BsdfContext {
@@ -138,17 +148,23 @@ impl Default for BsdfContext {
 
 impl BsdfContext {
     /// Camera paths, every lobe.
-    pub const RADIANCE: BsdfContext = BsdfContext { mode: TransportMode::Radiance, lobes: Lobe::all() };
+    pub const RADIANCE: BsdfContext = BsdfContext { mode: TransportMode::Radiance, lobes: Lobe::all(), extraordinary: false };
     /// Light paths, every lobe.
-    pub const IMPORTANCE: BsdfContext = BsdfContext { mode: TransportMode::Importance, lobes: Lobe::all() };
+    pub const IMPORTANCE: BsdfContext = BsdfContext { mode: TransportMode::Importance, lobes: Lobe::all(), extraordinary: false };
 
     pub const fn new(mode: TransportMode) -> BsdfContext {
-        BsdfContext { mode, lobes: Lobe::all() }
+        BsdfContext { mode, lobes: Lobe::all(), extraordinary: false }
     }
 
     /// The same context restricted to `lobes`.
     pub const fn with_lobes(self, lobes: Lobe) -> BsdfContext {
-        BsdfContext { mode: self.mode, lobes }
+        BsdfContext { mode: self.mode, lobes, extraordinary: self.extraordinary }
+    }
+
+    /// The context for the path's next vertex after a sample of `lobe`.
+    #[inline]
+    pub fn following(self, lobe: Lobe) -> BsdfContext {
+        BsdfContext { extraordinary: lobe.contains(Lobe::EXTRAORDINARY), ..self }
     }
 
     /// Whether any of `lobe` is wanted.
@@ -235,6 +251,7 @@ pub enum Bsdf {
     RoughPlastic(RoughPlastic),
     Principled(Principled),
     PrincipledThin(PrincipledThin),
+    Birefringent(Birefringent),
 }
 
 /// Static dispatch: `$b` is bound to the model inside each arm.
@@ -259,6 +276,7 @@ macro_rules! dispatch {
             Bsdf::RoughPlastic($b) => $e,
             Bsdf::Principled($b) => $e,
             Bsdf::PrincipledThin($b) => $e,
+            Bsdf::Birefringent($b) => $e,
         }
     };
 }
@@ -285,6 +303,16 @@ impl Bsdf {
             Bsdf::RoughPlastic(_) => "roughplastic",
             Bsdf::Principled(_) => "principled",
             Bsdf::PrincipledThin(_) => "principledthin",
+            Bsdf::Birefringent(_) => "birefringent",
+        }
+    }
+
+    /// This BSDF as placed on a shape by `to_world`, if it depends on the
+    /// shape's frame (a crystal's optic axis); `None` if it does not.
+    pub fn placed_on(&self, to_world: &crate::math::Transform) -> Option<Bsdf> {
+        match self {
+            Bsdf::Birefringent(b) => Some(Bsdf::Birefringent(b.placed_on(to_world))),
+            _ => None,
         }
     }
 

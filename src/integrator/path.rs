@@ -45,6 +45,7 @@ impl PathTracer {
         let mut prev = ShadingPoint::at(ray.o);
         let mut prev_pdf = 0.0f32;
         let mut prev_delta = true;
+        let mut ctx = BsdfContext::RADIANCE;
 
         loop {
             let hit = scene.intersect_path(&ray, self.hide_emitters && depth == 0, sampler);
@@ -89,7 +90,8 @@ impl PathTracer {
             }
 
             // Continue the path by sampling the BSDF.
-            let Some(bs) = bsdf.sample::<S>(&BsdfContext::RADIANCE, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
+            let Some(bs) = bsdf.sample::<S>(&ctx, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
+            ctx = ctx.following(bs.lobe);
             let d = si.to_world(bs.wo);
             throughput *= bs.weight;
             eta *= bs.eta;

@@ -79,6 +79,7 @@ impl ParticleTracer {
         let mut ray = em.ray;
         // Segments traced so far (emitter → … → current vertex).
         let mut segments = 0u32;
+        let mut ctx = BsdfContext::IMPORTANCE;
         loop {
             let Some(si) = scene.intersect_path(&ray, false, sampler) else { break };
             segments += 1;
@@ -107,7 +108,8 @@ impl ParticleTracer {
             if segments.saturating_add(2) > self.max_depth {
                 break;
             }
-            let Some(bs) = bsdf.sample::<S>(&BsdfContext::IMPORTANCE, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
+            let Some(bs) = bsdf.sample::<S>(&ctx, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
+            ctx = ctx.following(bs.lobe);
             let correction = shading_correction(&si, si.wi, bs.wo);
             beta *= bs.weight * correction;
             let d = si.to_world(bs.wo);

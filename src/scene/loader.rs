@@ -33,9 +33,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub const SHAPES: [&str; 10] = ["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "shapegroup", "instance"];
-pub const BSDFS: [&str; 18] = [
-    "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer", "principled",
-    "principledthin", "retarder",
+pub const BSDFS: [&str; 19] = [
+    "birefringent", "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer",
+    "principled", "principledthin", "retarder",
     "roughconductor", "roughdielectric", "roughplastic", "thindielectric", "twosided",
 ];
 pub const TEXTURES: [&str; 3] = ["bitmap", "checkerboard", "mesh_attribute"];
@@ -468,6 +468,14 @@ impl Loader {
                 self.bsdfs.len() as u32 - 1
             }
         };
+        // A crystal's optic axis is given in the shape's frame: each shape gets its own copy.
+        let bsdf = match self.bsdfs[bsdf as usize].placed_on(&to_world) {
+            Some(placed) => {
+                self.bsdfs.push(placed);
+                self.bsdfs.len() as u32 - 1
+            }
+            None => bsdf,
+        };
         let emitter = match emitter_nodes.first() {
             Some(e) => Some(self.area_emitter(e, shape_index)?),
             None => None,
@@ -666,6 +674,7 @@ impl Loader {
             "roughplastic" => Bsdf::RoughPlastic(crate::bsdf::RoughPlastic::from_props(&props, self)?),
             "principled" => Bsdf::Principled(crate::bsdf::Principled::from_props(&props, self)?),
             "principledthin" => Bsdf::PrincipledThin(crate::bsdf::PrincipledThin::from_props(&props, self)?),
+            "birefringent" => Bsdf::Birefringent(crate::bsdf::Birefringent::from_props(&props, self)?),
             _ => return Err(unknown_plugin(node, &BSDFS)),
         };
         props.finish()?;
