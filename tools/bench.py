@@ -26,7 +26,9 @@ written once to /tmp/snell-mesh-bench as binary PLY and OBJ, on a floor under a
 constant sky, 512², 16 spp): per run a fresh process; load + build seconds, render
 seconds and peak RSS, and bytes per triangle as the RSS growth over a 2000-triangle
 mesh; Snell's RSS is the whole run's peak, Mitsuba's the peak after loading (its
-render-time memory does not depend on the mesh). Prints the CPU's SIMD width.
+render-time memory does not depend on the mesh). Load CPU seconds (user + system,
+all threads) are less disturbed by a busy machine than wall seconds: Snell's from a
+second run at 16², 1 spp, Mitsuba's around load_file. Prints the CPU's SIMD width.
 
 Usage: python3 tools/bench.py [--runs 3] [--scene scenes/cornell-box.xml]...
            [--spp 256] [--res 512] [--threads 2] [-D key=value ...]
@@ -245,12 +247,15 @@ def mesh_scene(mesh_file, res, spp):
     return xml
 
 
-def run_measured(cmd, env=None):
-    """Runs cmd; returns (exit code, stdout, peak RSS in bytes) of that process alone."""
+def run_measured(cmd, env=None, cpu=None):
+    """Runs cmd; returns (exit code, stdout, peak RSS in bytes) of that process alone
+    (and, in the dict cpu if given, its user + system CPU seconds as "cpu")."""
     p = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     out = p.stdout.read()
     _, status, ru = os.wait4(p.pid, 0)
     p.returncode = os.waitstatus_to_exitcode(status)
+    if cpu is not None:
+        cpu["cpu"] = ru.ru_utime + ru.ru_stime
     return p.returncode, out, ru.ru_maxrss * 1024
 
 
@@ -263,7 +268,13 @@ def mesh_snell_once(args, xml):
         sys.exit(f"snell failed ({code}):\n{out}")
     with open(stats) as f:
         st = json.load(f)
-    return {"load": float(st["load_seconds"]), "render": float(st["render_seconds"]), "rss": rss}
+    # CPU seconds of loading: a run that renders a 16² image at 1 spp.
+    cpu = {}
+    code, out, _ = run_measured(cmd + ["-D", "res=16", "-D", "spp=1"], cpu=cpu)
+    if code != 0:
+        sys.exit(f"snell failed ({code}):\n{out}")
+    return {"load": float(st["load_seconds"]), "render": float(st["render_seconds"]), "rss": rss,
+            "load_cpu": cpu["cpu"]}
 
 
 def mitsuba_mesh_worker(args):
@@ -275,9 +286,12 @@ def mitsuba_mesh_worker(args):
     mi.set_variant("llvm_ad_rgb")
     dr.set_thread_count(args.threads)
     t = time.perf_counter()
+    r0 = resource.getrusage(resource.RUSAGE_SELF)
     scene = mi.load_file(args.scene[0])
     load = time.perf_counter() - t
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+    r1 = resource.getrusage(resource.RUSAGE_SELF)
+    load_cpu = (r1.ru_utime + r1.ru_stime) - (r0.ru_utime + r0.ru_stime)
+    rss = r1.ru_maxrss * 1024
 
     def one():
         t = time.perf_counter()
@@ -287,7 +301,7 @@ def mitsuba_mesh_worker(args):
         return time.perf_counter() - t
 
     one()  # JIT compilation
-    print(json.dumps({"load": load, "render": one(), "rss": rss}))
+    print(json.dumps({"load": load, "render": one(), "rss": rss, "load_cpu": load_cpu}))
 
 
 def mesh_mitsuba_once(args, xml, py):
@@ -334,24 +348,25 @@ def bench_mesh(args):
                 runs = [r for r in (once() for _ in range(args.runs)) if r]
                 if not runs:
                     continue
-                med = {k: statistics.median(r[k] for r in runs) for k in ("load", "render", "rss")}
+                med = {k: statistics.median(r[k] for r in runs) for k in ("load", "render", "rss", "load_cpu")}
                 if n == MESH_BASELINE:
                     base[who] = dict(med, triangles=row["triangles"])
                 elif who in base:
                     med["bytes_per_tri"] = (med["rss"] - base[who]["rss"]) / (row["triangles"] - base[who]["triangles"])
                 row[who] = med
-                print(f"  {fmt} {row['triangles']:>8} {who:<8} load+build {med['load']:7.3f} s  "
+                print(f"  {fmt} {row['triangles']:>8} {who:<8} load+build {med['load']:7.3f} s "
+                      f"(CPU {med['load_cpu']:7.3f} s)  "
                       f"render {med['render']:7.3f} s  peak RSS {med['rss'] / 2**20:8.1f} MiB"
                       + (f"  {med['bytes_per_tri']:6.1f} B/tri" if "bytes_per_tri" in med else ""))
             if n != MESH_BASELINE:
                 rows.append(row)
     print(f"summary (medians of {args.runs} runs)")
-    print(f"{'mesh':<14} {'':>8} {'load s':>8} {'render s':>9} {'B/tri':>7}")
+    print(f"{'mesh':<14} {'':>8} {'load s':>8} {'load CPU':>9} {'render s':>9} {'B/tri':>7}")
     for r in rows:
         for who in ("snell", "mitsuba"):
             if who in r:
                 m = r[who]
-                print(f"{r['format']} {r['triangles']:>9} {who:<8} {m['load']:8.3f} {m['render']:9.3f} "
+                print(f"{r['format']} {r['triangles']:>9} {who:<8} {m['load']:8.3f} {m['load_cpu']:9.3f} {m['render']:9.3f} "
                       f"{m.get('bytes_per_tri', float('nan')):7.1f}")
     return rows
 

@@ -13,8 +13,9 @@ use glam::Vec3A;
 /// of up to `PACKET` triangles, or one other primitive).
 const COST_TRAVERSE: f32 = 1.0;
 const COST_UNIT: f32 = 1.0;
-/// Nodes at most this size use the exact SAH sweep.
-const SWEEP_MAX: usize = 128;
+/// Nodes at most this size use the exact SAH sweep (three sorts per node:
+/// worth it only near the leaves).
+const SWEEP_MAX: usize = 24;
 const BINS: usize = 32;
 /// Past this depth, nodes split at the object median: depth stays bounded
 /// (and with it the traversal stack) whatever the input.
@@ -153,15 +154,16 @@ struct Split {
 
 fn build_rec(items: &mut [Item], offset: usize, depth: u32, max_leaf: usize, nodes: &mut Vec<Node2>) -> u32 {
     let id = nodes.len() as u32;
-    let bounds = items.iter().fold(Aabb::EMPTY, |b, it| b.union(it.bounds()));
+    let (bounds, cbounds, tris) = items.iter().fold((Aabb::EMPTY, Aabb::EMPTY, 0), |(b, c, t), it| {
+        let ib = it.bounds();
+        (b.union(ib), c.grow(ib.centroid()), t + it.tri() as usize)
+    });
     let n = items.len();
-    let tris = items.iter().filter(|it| it.tri()).count();
     nodes.push(Node2::new(bounds, offset as u32, 0, n as u32));
     if n <= 1 {
         return id;
     }
     let leaf_cost = COST_UNIT * units(tris, n - tris);
-    let cbounds = items.iter().fold(Aabb::EMPTY, |b, it| b.grow(it.centroid()));
     let degenerate = (cbounds.hi - cbounds.lo).max_element() <= 0.0;
     let split = if degenerate || depth >= MAX_SAH_DEPTH {
         None
@@ -220,7 +222,7 @@ fn sweep_split(items: &mut [Item], parent_area: f32) -> Option<Split> {
     let mut best: Option<(Split, usize)> = None;
     let mut right_cost = vec![0.0f32; n];
     for axis in 0..3 {
-        items.sort_by(|a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]).then(a.id.cmp(&b.id)));
+        items.sort_unstable_by(|a, b| (a.lo[axis] + a.hi[axis]).total_cmp(&(b.lo[axis] + b.hi[axis])).then(a.id.cmp(&b.id)));
         // right_cost[i]: area × units of items[i..].
         let (mut b, mut t) = (Aabb::EMPTY, 0);
         for i in (1..n).rev() {
@@ -240,7 +242,7 @@ fn sweep_split(items: &mut [Item], parent_area: f32) -> Option<Split> {
     }
     let (split, axis) = best?;
     if axis != 2 {
-        items.sort_by(|a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]).then(a.id.cmp(&b.id)));
+        items.sort_unstable_by(|a, b| (a.lo[axis] + a.hi[axis]).total_cmp(&(b.lo[axis] + b.hi[axis])).then(a.id.cmp(&b.id)));
     }
     Some(split)
 }
@@ -250,22 +252,26 @@ fn binned_split(items: &mut [Item], parent_area: f32, cbounds: Aabb) -> Option<S
     let inv_area = 1.0 / parent_area.max(f32::MIN_POSITIVE);
     let ext = cbounds.hi - cbounds.lo;
     let mut best: Option<(f32, usize, usize)> = None; // cost, axis, bins left of the split
+    // One pass over the items fills the bins of all three axes.
+    let scale = Vec3A::select(ext.cmpgt(Vec3A::ZERO), Vec3A::splat(BINS as f32) / ext, Vec3A::ZERO);
+    let mut bb = [[Aabb::EMPTY; BINS]; 3];
+    let mut tri = [[0usize; BINS]; 3];
+    let mut cnt = [[0usize; BINS]; 3];
+    for it in items.iter() {
+        let b = it.bounds();
+        let k = ((b.centroid() - cbounds.lo) * scale).to_array();
+        for axis in 0..3 {
+            let k = (k[axis] as usize).min(BINS - 1);
+            bb[axis][k] = bb[axis][k].union(b);
+            cnt[axis][k] += 1;
+            tri[axis][k] += it.tri() as usize;
+        }
+    }
     for axis in 0..3 {
         if ext[axis] <= 0.0 {
             continue;
         }
-        let scale = BINS as f32 / ext[axis];
-        let bin_of = |c: f32| (((c - cbounds.lo[axis]) * scale) as usize).min(BINS - 1);
-        let mut bb = [Aabb::EMPTY; BINS];
-        let mut tri = [0usize; BINS];
-        let mut cnt = [0usize; BINS];
-        for it in items.iter() {
-            let b = it.bounds();
-            let k = bin_of(b.centroid()[axis]);
-            bb[k] = bb[k].union(b);
-            cnt[k] += 1;
-            tri[k] += it.tri() as usize;
-        }
+        let (bb, tri, cnt) = (&bb[axis], &tri[axis], &cnt[axis]);
         let mut right_cost = [0.0f32; BINS];
         let (mut b, mut t, mut c) = (Aabb::EMPTY, 0, 0);
         for k in (1..BINS).rev() {
