@@ -462,13 +462,16 @@ impl Accel {
     }
 
     /// Bytes held by the acceleration structure (nodes, leaves, primitive
-    /// data, groups and instance records), for memory reports.
+    /// data, groups and instance records) and by the mesh buffers it reads
+    /// (shared with the meshes, counted once per BVH that uses them), for
+    /// memory reports.
     pub fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
         self.nodes.capacity() * size_of::<Node>()
             + self.leaves.capacity() * size_of::<Leaf>()
             + self.tris.capacity() * size_of::<TriRef>()
             + self.meshes.capacity() * size_of::<MeshRef>()
+            + self.meshes.iter().map(|m| m.positions.len() * size_of::<Vec3>() + m.triangles.len() * size_of::<[u32; 3]>()).sum::<usize>()
             + self.others.capacity() * size_of::<PrimGeom>()
             + self.other_refs.capacity() * size_of::<PrimRef>()
             + self.instances.capacity() * size_of::<Instance>()
