@@ -278,7 +278,9 @@ fn many_instances_share_one_copy() {
     let (m1, m2) = (one.accel.memory_bytes(), many.accel.memory_bytes());
     let per_instance = (m2 - m1) as f64 / 9_999.0;
     eprintln!("accel: 1 instance {m1} B, 10 000 instances {m2} B ({per_instance:.0} B per instance)");
-    assert!(m1 > 100_000 * 40, "one copy holds the triangles ({m1} B)");
+    // One copy: the mesh's vertices and indices (about 18 B per triangle)
+    // that the BVH reads, and the BVH's nodes and triangle references.
+    assert!(m1 > 100_000 * 30, "one copy holds the triangles ({m1} B)");
     assert!(per_instance < 600.0, "{per_instance} bytes per instance");
     // Rays find the instances: one straight down onto instance (10, 10).
     let ray = snell::geometry::Ray::new(Vec3::new(25.0 + 0.1, 25.0 + 0.05, 5.0), -Vec3::Z);

@@ -21,6 +21,15 @@ width*height*spp / seconds.
 
 Prints both medians and the ratio snell/mitsuba (samples/s; > 1 = Snell faster).
 
+--mesh 1M,4M: the mesh benchmark instead (bumpy spheres of that many triangles,
+written once to /tmp/snell-mesh-bench as binary PLY and OBJ, on a floor under a
+constant sky, 512², 16 spp): per run a fresh process; load + build seconds, render
+seconds and peak RSS, and bytes per triangle as the RSS growth over a 2000-triangle
+mesh; Snell's RSS is the whole run's peak, Mitsuba's the peak after loading (its
+render-time memory does not depend on the mesh). Load CPU seconds (user + system,
+all threads) are less disturbed by a busy machine than wall seconds: Snell's from a
+second run at 16², 1 spp, Mitsuba's around load_file. Prints the CPU's SIMD width.
+
 Usage: python3 tools/bench.py [--runs 3] [--scene scenes/cornell-box.xml]...
            [--spp 256] [--res 512] [--threads 2] [-D key=value ...]
            [--snell target/release/snell] [--no-snell] [--no-mitsuba] [--json out.json]
@@ -147,6 +156,233 @@ def bench_mitsuba(args):
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
+# ------------------------------------------------------------------- mesh benchmark
+
+MESH_DIR = "/tmp/snell-mesh-bench"
+# Triangles of the small mesh whose run is subtracted to get the growth per triangle.
+MESH_BASELINE = 2000
+
+
+def mesh_grid(n_tris):
+    """(nu, nv) of a bumpy sphere with 2·nu·nv ≈ n_tris triangles."""
+    nv = max(2, int(round((n_tris / 4) ** 0.5)))
+    nu = max(3, int(round(n_tris / (2 * nv))))
+    return nu, nv
+
+
+def write_mesh(path, n_tris):
+    """A closed bumpy sphere (radius ≈ 1) as binary little-endian PLY or OBJ; cached."""
+    if os.path.exists(path):
+        return
+    import array
+    import math
+    nu, nv = mesh_grid(n_tris)
+    pos = array.array("f")
+    for j in range(nv + 1):
+        th = math.pi * j / nv
+        st, ct = math.sin(th), math.cos(th)
+        for i in range(nu):
+            ph = 2 * math.pi * i / nu
+            r = 1.0 + 0.05 * math.sin(37 * ph) * math.sin(23 * th)
+            pos.extend((r * st * math.cos(ph), r * st * math.sin(ph), r * ct))
+    tris = array.array("i")
+    for j in range(nv):
+        for i in range(nu):
+            a, b = j * nu + i, j * nu + (i + 1) % nu
+            tris.extend((a, b, b + nu, a, b + nu, a + nu))
+    n_v, n_t = len(pos) // 3, len(tris) // 3
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    tmp = path + ".part"
+    if path.endswith(".ply"):
+        import struct
+        if sys.byteorder != "little":
+            pos.byteswap()
+            tris.byteswap()
+        head = ("ply\nformat binary_little_endian 1.0\n"
+                f"element vertex {n_v}\nproperty float x\nproperty float y\nproperty float z\n"
+                f"element face {n_t}\nproperty list uchar int vertex_indices\nend_header\n")
+        tb = tris.tobytes()
+        with open(tmp, "wb") as f:
+            f.write(head.encode())
+            f.write(pos.tobytes())
+            three = b"\x03"
+            f.write(b"".join(three + tb[12 * k:12 * k + 12] for k in range(n_t)))
+    else:
+        with open(tmp, "w") as f:
+            f.write("# bumpy sphere, tools/bench.py --mesh\n")
+            f.write("".join("v %.6f %.6f %.6f\n" % (pos[3 * k], pos[3 * k + 1], pos[3 * k + 2])
+                            for k in range(n_v)))
+            f.write("".join("f %d %d %d\n" % (tris[3 * k] + 1, tris[3 * k + 1] + 1, tris[3 * k + 2] + 1)
+                            for k in range(n_t)))
+    os.replace(tmp, path)
+
+
+def mesh_scene(mesh_file, res, spp):
+    """The XML (beside the mesh) of a diffuse mesh over a floor under a constant sky."""
+    kind = "ply" if mesh_file.endswith(".ply") else "obj"
+    xml = os.path.splitext(mesh_file)[0] + f"-{kind}.xml"
+    with open(xml, "w") as f:
+        f.write(f"""<scene version="3.0.0">
+    <default name="res" value="{res}"/>
+    <default name="spp" value="{spp}"/>
+    <default name="max_depth" value="8"/>
+    <integrator type="path"><integer name="max_depth" value="$max_depth"/></integrator>
+    <sensor type="perspective">
+        <float name="fov" value="40"/>
+        <transform name="to_world"><lookat origin="0, -3.2, 1.6" target="0, 0, 0" up="0, 0, 1"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="$spp"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="$res"/><integer name="height" value="$res"/></film>
+    </sensor>
+    <shape type="{kind}">
+        <string name="filename" value="{os.path.basename(mesh_file)}"/>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.6, 0.5, 0.4"/></bsdf>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="5"/><translate z="-1.05"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.5"/></bsdf>
+    </shape>
+    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+</scene>
+""")
+    return xml
+
+
+def run_measured(cmd, env=None, cpu=None):
+    """Runs cmd; returns (exit code, stdout, peak RSS in bytes) of that process alone
+    (and, in the dict cpu if given, its user + system CPU seconds as "cpu")."""
+    p = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    out = p.stdout.read()
+    _, status, ru = os.wait4(p.pid, 0)
+    p.returncode = os.waitstatus_to_exitcode(status)
+    if cpu is not None:
+        cpu["cpu"] = ru.ru_utime + ru.ru_stime
+    return p.returncode, out, ru.ru_maxrss * 1024
+
+
+def mesh_snell_once(args, xml):
+    stats = os.path.join(MESH_DIR, "stats.json")
+    cmd = [args.snell, "render", xml, "-o", os.path.join(MESH_DIR, "out.exr"), "--threads", str(args.threads),
+           "--stats", stats, "--quiet"]
+    code, out, rss = run_measured(cmd)
+    if code != 0:
+        sys.exit(f"snell failed ({code}):\n{out}")
+    with open(stats) as f:
+        st = json.load(f)
+    # CPU seconds of loading: a run that renders a 16² image at 1 spp.
+    cpu = {}
+    code, out, _ = run_measured(cmd + ["-D", "res=16", "-D", "spp=1"], cpu=cpu)
+    if code != 0:
+        sys.exit(f"snell failed ({code}):\n{out}")
+    return {"load": float(st["load_seconds"]), "render": float(st["render_seconds"]), "rss": rss,
+            "load_cpu": cpu["cpu"]}
+
+
+def mitsuba_mesh_worker(args):
+    """In a Python with mitsuba: load (timed), RSS after load, warm-up render, timed render."""
+    os.environ.setdefault("DRJIT_LIBLLVM_PATH", LLVM_LIB)
+    import resource
+    import drjit as dr
+    import mitsuba as mi
+    mi.set_variant("llvm_ad_rgb")
+    dr.set_thread_count(args.threads)
+    t = time.perf_counter()
+    r0 = resource.getrusage(resource.RUSAGE_SELF)
+    scene = mi.load_file(args.scene[0])
+    load = time.perf_counter() - t
+    r1 = resource.getrusage(resource.RUSAGE_SELF)
+    load_cpu = (r1.ru_utime + r1.ru_stime) - (r0.ru_utime + r0.ru_stime)
+    rss = r1.ru_maxrss * 1024
+
+    def one():
+        t = time.perf_counter()
+        img = mi.render(scene, seed=0)
+        dr.eval(img)
+        dr.sync_thread()
+        return time.perf_counter() - t
+
+    one()  # JIT compilation
+    print(json.dumps({"load": load, "render": one(), "rss": rss, "load_cpu": load_cpu}))
+
+
+def mesh_mitsuba_once(args, xml, py):
+    env = dict(os.environ)
+    env.setdefault("DRJIT_LIBLLVM_PATH", LLVM_LIB)
+    code, out, _ = run_measured([py, os.path.abspath(__file__), "--mitsuba-mesh-worker", "--scene", xml,
+                                 "--threads", str(args.threads)], env)
+    if code != 0:
+        print(f"mitsuba: worker failed ({code}):\n{out}")
+        return None
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def bench_mesh(args):
+    """--mesh: load + build seconds, render seconds, peak RSS and bytes per triangle
+    (RSS growth over a small mesh) for Snell and Mitsuba, medians of --runs."""
+    sizes = [int(float(s.rstrip("Mm")) * 1e6) if s[-1] in "Mm" else int(s) for s in args.mesh.split(",")]
+    formats = [f.strip() for f in args.mesh_formats.split(",")]
+    py = None
+    if args.mitsuba_python:
+        py = args.mitsuba_python
+    elif not args.no_mitsuba:
+        try:
+            import mitsuba  # noqa: F401
+            py = sys.executable
+        except ImportError:
+            py = VENV_PY if os.path.exists(VENV_PY) else None
+    have_snell = not args.no_snell and os.access(args.snell, os.X_OK)
+    print(f"mesh benchmark: {args.mesh_res}², {args.mesh_spp} spp, {args.threads} threads, "
+          f"{args.runs} runs; CPU SIMD: {cpu_simd()}")
+    rows = []
+    for fmt in formats:
+        base = {}
+        for n in [MESH_BASELINE] + sizes:
+            nu, nv = mesh_grid(n)
+            mesh = os.path.join(MESH_DIR, f"sphere-{2 * nu * nv}.{fmt}")
+            write_mesh(mesh, n)
+            xml = mesh_scene(mesh, args.mesh_res, args.mesh_spp)
+            row = {"format": fmt, "triangles": 2 * nu * nv}
+            for who, once in (("snell", (lambda: mesh_snell_once(args, xml)) if have_snell else None),
+                              ("mitsuba", (lambda: mesh_mitsuba_once(args, xml, py)) if py else None)):
+                if once is None:
+                    continue
+                runs = [r for r in (once() for _ in range(args.runs)) if r]
+                if not runs:
+                    continue
+                med = {k: statistics.median(r[k] for r in runs) for k in ("load", "render", "rss", "load_cpu")}
+                if n == MESH_BASELINE:
+                    base[who] = dict(med, triangles=row["triangles"])
+                elif who in base:
+                    med["bytes_per_tri"] = (med["rss"] - base[who]["rss"]) / (row["triangles"] - base[who]["triangles"])
+                row[who] = med
+                print(f"  {fmt} {row['triangles']:>8} {who:<8} load+build {med['load']:7.3f} s "
+                      f"(CPU {med['load_cpu']:7.3f} s)  "
+                      f"render {med['render']:7.3f} s  peak RSS {med['rss'] / 2**20:8.1f} MiB"
+                      + (f"  {med['bytes_per_tri']:6.1f} B/tri" if "bytes_per_tri" in med else ""))
+            if n != MESH_BASELINE:
+                rows.append(row)
+    print(f"summary (medians of {args.runs} runs)")
+    print(f"{'mesh':<14} {'':>8} {'load s':>8} {'load CPU':>9} {'render s':>9} {'B/tri':>7}")
+    for r in rows:
+        for who in ("snell", "mitsuba"):
+            if who in r:
+                m = r[who]
+                print(f"{r['format']} {r['triangles']:>9} {who:<8} {m['load']:8.3f} {m['load_cpu']:9.3f} {m['render']:9.3f} "
+                      f"{m.get('bytes_per_tri', float('nan')):7.1f}")
+    return rows
+
+
+def cpu_simd():
+    """The widest x86 vector extension the CPU reports (and its model)."""
+    try:
+        info = open("/proc/cpuinfo").read()
+    except OSError:
+        return "unknown"
+    flags = set(re.findall(r"^flags\s*:(.*)$", info, re.M)[0].split()) if "flags" in info else set()
+    model = re.findall(r"^model name\s*:\s*(.*)$", info, re.M)
+    width = "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "SSE"
+    return f"{width} ({model[0] if model else 'unknown model'})"
+
+
 DEFAULT_SCENES = ["scenes/cornell-box.xml", "scenes/caustic-cornell-box.xml"]
 
 
@@ -193,7 +429,24 @@ def main():
                          "llvm_ad_rgb / llvm_ad_spectral / llvm_ad_spectral_polarized); e.g. --modes rgb,spectral")
     ap.add_argument("--mode", default="rgb", help=argparse.SUPPRESS)
     ap.add_argument("--mitsuba-worker", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--mesh", metavar="SIZES",
+                    help="mesh benchmark instead of scenes: triangle counts, e.g. 1M,4M")
+    ap.add_argument("--mesh-formats", default="ply,obj", help="mesh files to load: ply, obj or both")
+    ap.add_argument("--mesh-res", type=int, default=512)
+    ap.add_argument("--mitsuba-python", help="a Python with mitsuba for the mesh benchmark "
+                    "(default: this one, or .venv-mitsuba)")
+    ap.add_argument("--mesh-spp", type=int, default=16)
+    ap.add_argument("--mitsuba-mesh-worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.mitsuba_mesh_worker:
+        mitsuba_mesh_worker(args)
+        return
+    if args.mesh:
+        rows = bench_mesh(args)
+        if args.json:
+            with open(args.json, "w") as f:
+                json.dump(rows, f, indent=2)
+        return
     scenes = [os.path.join(ROOT, sc) if not os.path.isabs(sc) else sc
               for sc in (args.scene or DEFAULT_SCENES)]
     missing = [sc for sc in scenes if not os.path.isfile(sc)]

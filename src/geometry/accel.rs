@@ -1,9 +1,16 @@
 //! The acceleration structure: an 8-wide BVH over every primitive of every
-//! shape. It is built as a binary SAH BVH (`accel/build.rs`) and collapsed
-//! to nodes that keep their eight child boxes in SoA form, so one SIMD slab
-//! test (`accel/simd.rs`: AVX2 on x86-64-v3, plain arrays elsewhere) checks
-//! all of them. Leaves hold triangles in SoA packets of eight, tested at
-//! once by a SIMD Möller–Trumbore; spheres and disks are tested one by one.
+//! shape. It is built as a binary SAH BVH (`accel/build.rs`, parallel) and
+//! collapsed to nodes that keep their eight child boxes in SoA form, so one
+//! SIMD slab test (`accel/simd.rs`: AVX2 on x86-64-v3, plain arrays
+//! elsewhere) checks all of them. Leaves refer to triangles by index into
+//! their mesh (whose vertex and index buffers the BVH shares, see
+//! `mesh::Shared`: no copy of the geometry); a leaf's triangles are gathered
+//! eight at a time into SoA registers and tested at once by a SIMD
+//! Möller–Trumbore. Spheres and disks are tested one by one.
+//!
+//! Memory per triangle: 8 bytes of reference, plus about 16 of nodes and
+//! leaves; the mesh itself holds the vertices (12 bytes per vertex) and
+//! indices (12 per triangle).
 //!
 //! Instancing (Mitsuba's `shapegroup` + `instance`) makes it two-level:
 //! each shape group gets its own BVH, built once, and each instance is one
@@ -24,11 +31,12 @@ mod simd;
 
 use super::cylinder::Cylinder;
 use super::disk::Disk;
+use super::mesh::Shared;
 use super::shape::{Shape, ShapeGeometry};
 use super::sphere::Sphere;
 use super::Ray;
 use crate::math::Transform;
-use build::{Aabb, PACKET};
+use build::{Aabb, Item, OTHER, PACKET};
 use glam::{Vec3, Vec3A};
 use simd::F8;
 use std::mem::MaybeUninit;
@@ -89,7 +97,7 @@ struct Node {
 const LEAF: u32 = 1 << 31;
 
 
-/// A leaf: `packets[tri_start..tri_end]`, then `others[other_start..other_end]`.
+/// A leaf: triangles `tris[tri_start..tri_end]`, then `others[other_start..other_end]`.
 #[derive(Clone, Copy, Debug)]
 struct Leaf {
     tri_start: u32,
@@ -98,9 +106,25 @@ struct Leaf {
     other_end: u32,
 }
 
-/// `PACKET` triangles, one SIMD lane each: v0, −e1 = v0 − v1,
-/// e2 = v2 − v0 and the unnormalised normal e2 × e1. Unused lanes are
-/// degenerate (all zero), which the test rejects.
+/// A triangle of a leaf: which of `Accel::meshes`, and which triangle of it.
+#[derive(Clone, Copy, Debug)]
+struct TriRef {
+    mesh: u32,
+    prim: u32,
+}
+
+/// The vertex and index buffers of one mesh (shared with the mesh), and
+/// its shape index.
+#[derive(Clone, Debug)]
+struct MeshRef {
+    positions: Shared<Vec3>,
+    triangles: Shared<[u32; 3]>,
+    shape: u32,
+}
+
+/// `PACKET` triangles gathered from their meshes, one SIMD lane each: v0,
+/// −e1 = v0 − v1, e2 = v2 − v0 and the unnormalised normal e2 × e1.
+/// Unused lanes are degenerate (all zero), which the test rejects.
 #[derive(Clone, Copy, Debug)]
 struct TriPacket {
     v0: [F8; 3],
@@ -118,8 +142,8 @@ pub struct Accel {
     /// Root first; empty when there is nothing to hit.
     nodes: Vec<Node>,
     leaves: Vec<Leaf>,
-    packets: Vec<TriPacket>,
-    packet_refs: Vec<[PrimRef; PACKET]>,
+    tris: Vec<TriRef>,
+    meshes: Vec<MeshRef>,
     others: Vec<PrimGeom>,
     other_refs: Vec<PrimRef>,
     /// One BVH per shape group, and the instances placing them.
@@ -313,21 +337,50 @@ impl Accel {
     /// indices into `shapes`). Each group's BVH is built once.
     pub fn build_instanced(shapes: &[Shape], top: &[u32], groups: &[Vec<u32>], instances: &[(Transform, u32)]) -> Accel {
         let group_accels: Vec<Accel> = groups.iter().map(|members| Self::build_instanced(shapes, members, &[], &[])).collect();
-        let mut geoms = vec![];
-        let mut refs = vec![];
-        let mut boxes = vec![];
+        let mut meshes = vec![];
+        // First triangle id of each mesh; triangle ids number the triangles
+        // of all meshes in order.
+        let mut mesh_first = vec![];
+        let mut items: Vec<Item> = vec![];
+        let mut others = vec![];
+        let mut other_refs = vec![];
         let mut extent = Aabb::EMPTY;
+        // Flat primitives have zero-thickness boxes; pad them so the slab
+        // test never rejects a hit on an axis-aligned face.
+        let padded = |aabb: Aabb, rel: f32| {
+            let pad = Vec3A::splat(rel) * (1.0 + aabb.hi.abs().max(aabb.lo.abs()).max_element());
+            Aabb { lo: aabb.lo - pad, hi: aabb.hi + pad }
+        };
+        let mut n_tris = 0u64;
+        for &si in top {
+            if let ShapeGeometry::Mesh(m) = &shapes[si as usize].geometry {
+                n_tris += m.triangles.len() as u64;
+            }
+        }
+        assert!(n_tris < OTHER as u64, "too many triangles for one BVH ({n_tris})");
+        items.reserve(n_tris as usize);
         for &si in top {
             let shape = &shapes[si as usize];
+            if let ShapeGeometry::Mesh(m) = &shape.geometry {
+                use rayon::prelude::*;
+                let first = mesh_first.last().map_or(0, |&f| f + meshes.last().map_or(0, |m: &MeshRef| m.triangles.len() as u32));
+                let (pos, tris) = (&m.positions, &m.triangles);
+                let tri_box = |&[a, b, c]: &[u32; 3]| {
+                    let (a, b, c) = (Vec3A::from(pos[a as usize]), Vec3A::from(pos[b as usize]), Vec3A::from(pos[c as usize]));
+                    Aabb { lo: a.min(b).min(c), hi: a.max(b).max(c) }
+                };
+                items.par_extend(tris.par_iter().enumerate().map(|(p, t)| Item::new(padded(tri_box(t), 1e-6), first + p as u32)));
+                extent = extent.union(tris.par_iter().map(tri_box).reduce(|| Aabb::EMPTY, Aabb::union));
+                mesh_first.push(first);
+                meshes.push(MeshRef { positions: m.positions.clone(), triangles: m.triangles.clone(), shape: si });
+                continue;
+            }
             for p in 0..shape.primitive_count() {
                 let (g, aabb) = prim_geom(shape, p);
                 extent = extent.grow(aabb.lo).grow(aabb.hi);
-                // Flat primitives have zero-thickness boxes; pad them so the
-                // slab test never rejects a hit on an axis-aligned face.
-                let pad = Vec3A::splat(1e-6) * (1.0 + aabb.hi.abs().max(aabb.lo.abs()).max_element());
-                geoms.push(g);
-                refs.push(PrimRef { shape: si, prim: p as u32 });
-                boxes.push(Aabb { lo: aabb.lo - pad, hi: aabb.hi + pad });
+                items.push(Item::new(padded(aabb, 1e-6), OTHER | others.len() as u32));
+                others.push(g);
+                other_refs.push(PrimRef { shape: si, prim: p as u32 });
             }
         }
         let mut kept = vec![];
@@ -342,32 +395,57 @@ impl Accel {
                 aabb = aabb.grow(to_world.point(c).into());
             }
             extent = extent.grow(aabb.lo).grow(aabb.hi);
-            let pad = Vec3A::splat(1e-5) * (1.0 + aabb.hi.abs().max(aabb.lo.abs()).max_element());
-            geoms.push(PrimGeom::Instance(kept.len() as u32));
-            refs.push(PrimRef { shape: u32::MAX, prim: kept.len() as u32 });
-            boxes.push(Aabb { lo: aabb.lo - pad, hi: aabb.hi + pad });
+            items.push(Item::new(padded(aabb, 1e-5), OTHER | others.len() as u32));
+            others.push(PrimGeom::Instance(kept.len() as u32));
+            other_refs.push(PrimRef { shape: u32::MAX, prim: kept.len() as u32 });
             kept.push(Instance { to_world: *to_world, group: *group });
         }
         let mut accel = Accel {
             nodes: vec![],
             leaves: vec![],
-            packets: vec![],
-            packet_refs: vec![],
+            tris: vec![],
+            meshes,
             others: vec![],
             other_refs: vec![],
             groups: group_accels,
             instances: kept,
             extent: (extent.lo.into(), extent.hi.into()),
         };
-        if boxes.is_empty() {
+        if items.is_empty() {
             return accel;
         }
-        let is_tri: Vec<bool> = geoms.iter().map(|g| matches!(g, PrimGeom::Triangle { .. })).collect();
-        let bvh2 = build::build(&boxes, &is_tri, MAX_LEAF);
-        let mut c = Collapse { bvh2: &bvh2, geoms: &geoms, refs: &refs, accel: &mut accel, max_depth: 0 };
+        let bvh2 = build::build(items, MAX_LEAF);
+        let mut c = Collapse { bvh2: &bvh2, mesh_first: &mesh_first, others: &others, other_refs: &other_refs, accel: &mut accel, max_depth: 0 };
         c.node(0, 1);
         assert!((WIDTH as u32 - 1) * c.max_depth + 1 < STACK as u32, "BVH too deep for the traversal stack");
+        drop(bvh2);
+        accel.nodes.shrink_to_fit();
+        accel.leaves.shrink_to_fit();
+        accel.tris.shrink_to_fit();
         accel
+    }
+
+    /// The triangles `refs` (at most `PACKET`) gathered from their meshes.
+    #[inline(always)]
+    fn gather(&self, refs: &[TriRef]) -> TriPacket {
+        let mut f = [[[0.0f32; PACKET]; 3]; 3];
+        for (lane, r) in refs.iter().enumerate() {
+            let m = &self.meshes[r.mesh as usize];
+            let [a, b, c] = m.triangles[r.prim as usize];
+            for (k, v) in [a, b, c].into_iter().enumerate() {
+                let p = m.positions[v as usize];
+                f[k][0][lane] = p.x;
+                f[k][1][lane] = p.y;
+                f[k][2][lane] = p.z;
+            }
+        }
+        let [v0, v1, v2] = f.map(|c| c.map(F8::from_array));
+        let e1 = [v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]];
+        let e2 = [v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2]];
+        // e2 × e1, product by product as the scalar cross product rounds.
+        let ng = [e2[1] * e1[2] - e2[2] * e1[1], e2[2] * e1[0] - e2[0] * e1[2], e2[0] * e1[1] - e2[1] * e1[0]];
+        let e1n = [v0[0] - v1[0], v0[1] - v1[1], v0[2] - v1[2]];
+        TriPacket { v0, e1n, e2, ng }
     }
 
     /// Instance `i` of a hit (`Hit::instance`).
@@ -384,13 +462,16 @@ impl Accel {
     }
 
     /// Bytes held by the acceleration structure (nodes, leaves, primitive
-    /// data, groups and instance records), for memory reports.
+    /// data, groups and instance records) and by the mesh buffers it reads
+    /// (shared with the meshes, counted once per BVH that uses them), for
+    /// memory reports.
     pub fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
         self.nodes.capacity() * size_of::<Node>()
             + self.leaves.capacity() * size_of::<Leaf>()
-            + self.packets.capacity() * size_of::<TriPacket>()
-            + self.packet_refs.capacity() * size_of::<[PrimRef; PACKET]>()
+            + self.tris.capacity() * size_of::<TriRef>()
+            + self.meshes.capacity() * size_of::<MeshRef>()
+            + self.meshes.iter().map(|m| m.positions.len() * size_of::<Vec3>() + m.triangles.len() * size_of::<[u32; 3]>()).sum::<usize>()
             + self.others.capacity() * size_of::<PrimGeom>()
             + self.other_refs.capacity() * size_of::<PrimRef>()
             + self.instances.capacity() * size_of::<Instance>()
@@ -465,8 +546,8 @@ impl Accel {
                 }
             } else {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
-                for pi in leaf.tri_start..leaf.tri_end {
-                    let ([t, u, v, adet], mut mask) = r.triangles(&self.packets[pi as usize], tmax);
+                for refs in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET) {
+                    let ([t, u, v, adet], mut mask) = r.triangles(&self.gather(refs), tmax);
                     if mask != 0 {
                         // The deferred division, only for packets with a hit.
                         let inv = F8::splat(1.0) / adet;
@@ -481,7 +562,9 @@ impl Accel {
                             }
                         }
                         tmax = t[lane];
-                        found = Some((self.packet_refs[pi as usize][lane], u.to_array()[lane], v.to_array()[lane]));
+                        let tri = refs[lane];
+                        let pref = PrimRef { shape: self.meshes[tri.mesh as usize].shape, prim: tri.prim };
+                        found = Some((pref, u.to_array()[lane], v.to_array()[lane]));
                         if INSTANCES {
                             instance = NO_INSTANCE;
                         }
@@ -551,8 +634,8 @@ impl Accel {
                 }
             } else {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
-                for pi in leaf.tri_start..leaf.tri_end {
-                    if r.triangles(&self.packets[pi as usize], tmax).1 != 0 {
+                for refs in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET) {
+                    if r.triangles(&self.gather(refs), tmax).1 != 0 {
                         return true;
                     }
                 }
@@ -587,8 +670,10 @@ impl Accel {
 /// Collapses the binary BVH into `Accel`'s wide one.
 struct Collapse<'a> {
     bvh2: &'a build::Bvh2,
-    geoms: &'a [PrimGeom],
-    refs: &'a [PrimRef],
+    /// First triangle id of each mesh.
+    mesh_first: &'a [u32],
+    others: &'a [PrimGeom],
+    other_refs: &'a [PrimRef],
     accel: &'a mut Accel,
     max_depth: u32,
 }
@@ -596,39 +681,21 @@ struct Collapse<'a> {
 impl Collapse<'_> {
     /// Emits the leaf of BVH2 node `n2`; returns its child code.
     fn leaf(&mut self, n2: usize) -> u32 {
-        let build::Node2::Leaf { start, count, .. } = self.bvh2.nodes[n2] else { unreachable!() };
+        let node = self.bvh2.nodes[n2];
         let a = &mut *self.accel;
-        let items = &self.bvh2.order[start as usize..(start + count) as usize];
-        let tri_start = a.packets.len() as u32;
+        let items = &self.bvh2.order[node.a as usize..(node.a + node.count) as usize];
+        let tri_start = a.tris.len() as u32;
         let other_start = a.others.len() as u32;
-        let tris: Vec<usize> = items.iter().map(|&i| i as usize).filter(|&i| matches!(self.geoms[i], PrimGeom::Triangle { .. })).collect();
-        for chunk in tris.chunks(PACKET) {
-            // Unused lanes stay degenerate (all zero).
-            let mut f = [[[0.0f32; PACKET]; 3]; 4];
-            let mut r = [self.refs[chunk[0]]; PACKET];
-            for (lane, &i) in chunk.iter().enumerate() {
-                let PrimGeom::Triangle { v0, e1, e2 } = &self.geoms[i] else { unreachable!() };
-                let ng = e2.cross(*e1);
-                for k in 0..3 {
-                    f[0][k][lane] = v0[k];
-                    f[1][k][lane] = -e1[k];
-                    f[2][k][lane] = e2[k];
-                    f[3][k][lane] = ng[k];
-                }
-                r[lane] = self.refs[i];
-            }
-            let v = |a: [[f32; PACKET]; 3]| a.map(F8::from_array);
-            a.packets.push(TriPacket { v0: v(f[0]), e1n: v(f[1]), e2: v(f[2]), ng: v(f[3]) });
-            a.packet_refs.push(r);
+        for &id in items.iter().filter(|&&id| id & OTHER == 0) {
+            let mesh = self.mesh_first.partition_point(|&f| f <= id) - 1;
+            a.tris.push(TriRef { mesh: mesh as u32, prim: id - self.mesh_first[mesh] });
         }
-        for &i in items {
-            let g = &self.geoms[i as usize];
-            if !matches!(g, PrimGeom::Triangle { .. }) {
-                a.others.push(g.clone());
-                a.other_refs.push(self.refs[i as usize]);
-            }
+        for &id in items.iter().filter(|&&id| id & OTHER != 0) {
+            let i = (id & !OTHER) as usize;
+            a.others.push(self.others[i].clone());
+            a.other_refs.push(self.other_refs[i]);
         }
-        a.leaves.push(Leaf { tri_start, tri_end: a.packets.len() as u32, other_start, other_end: a.others.len() as u32 });
+        a.leaves.push(Leaf { tri_start, tri_end: a.tris.len() as u32, other_start, other_end: a.others.len() as u32 });
         LEAF | (a.leaves.len() as u32 - 1)
     }
 
@@ -639,7 +706,7 @@ impl Collapse<'_> {
         let id = self.accel.nodes.len();
         let (inf, ninf) = (F8::splat(f32::INFINITY), F8::splat(f32::NEG_INFINITY));
         self.accel.nodes.push(Node { b: [inf, inf, inf, ninf, ninf, ninf], children: [0; WIDTH] });
-        let is_inner = |k: usize| matches!(self.bvh2.nodes[k], build::Node2::Inner { .. });
+        let is_inner = |k: usize| self.bvh2.nodes[k].is_inner();
         // Open the largest inner child until the node is full.
         let mut kids = vec![n2];
         while kids.len() < WIDTH {
@@ -647,9 +714,9 @@ impl Collapse<'_> {
                 .filter(|&i| is_inner(kids[i]))
                 .max_by(|&a, &b| self.bvh2.nodes[kids[a]].bounds().half_area().total_cmp(&self.bvh2.nodes[kids[b]].bounds().half_area()));
             let Some(i) = best else { break };
-            let build::Node2::Inner { left, right, .. } = self.bvh2.nodes[kids[i]] else { unreachable!() };
-            kids[i] = left as usize;
-            kids.push(right as usize);
+            let inner = self.bvh2.nodes[kids[i]];
+            kids[i] = inner.a as usize;
+            kids.push(inner.b as usize);
         }
         let mut bounds = [[0.0f32; WIDTH]; 6];
         for (slot, row) in bounds.iter_mut().enumerate() {
@@ -738,7 +805,10 @@ mod tests {
             }
             assert_eq!(accel.occluded(&ray), expected.is_some(), "ray {i}: occlusion");
             if let Some((t, ..)) = expected {
-                assert!(!accel.occluded(&Ray { tmax: t * 0.999, ..ray }) || brute_force(shapes, &Ray { tmax: t * 0.999, ..ray }).is_some());
+                // Nothing before the closest hit, up to the precision the
+                // closest-hit check above allows (1e-5 absolute below t = 1).
+                let before = (t * 0.999).min(t - 2e-5 * t.max(1.0));
+                assert!(!accel.occluded(&Ray { tmax: before, ..ray }) || brute_force(shapes, &Ray { tmax: before, ..ray }).is_some());
             }
         }
         hits
@@ -815,6 +885,125 @@ mod tests {
         let hits = check(&shapes, 5000, 11, c - Vec3::splat(0.8), c + Vec3::splat(0.8));
         assert!(hits > 3000, "{hits}");
         check(&shapes, 5000, 12, c - Vec3::splat(3.0), c + Vec3::splat(3.0));
+    }
+
+    /// A random mesh with shared vertices, including degenerate triangles
+    /// (repeated vertices, collinear vertices, zero area) and tiny ones.
+    fn random_mesh(rng: &mut Pcg32, n_tris: usize, centre: Vec3) -> Mesh {
+        let mut r3 = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let n_verts = n_tris / 2 + 3;
+        let mut positions: Vec<Vec3> = (0..n_verts).map(|_| centre + (r3() - 0.5) * 3.0).collect();
+        // Some vertices on a common line and some on an axis-aligned plane.
+        for k in 0..n_verts / 10 {
+            positions[k] = centre + Vec3::new(k as f32 * 0.01, 0.5, 0.5);
+        }
+        let mut triangles = vec![];
+        for i in 0..n_tris {
+            let v = |x: f32| ((x * n_verts as f32) as u32).min(n_verts as u32 - 1);
+            let a = v(r3().x);
+            let mut t = [a, v(r3().y), v(r3().z)];
+            match i % 11 {
+                0 => t[1] = t[0],                                 // two equal vertices
+                1 => t = [t[0], t[0], t[0]],                       // a point
+                2 => t = [0, 1, 2].map(|k| (k + i as u32) % (n_verts as u32 / 10)), // collinear
+                3 => {
+                    // tiny: two vertices close to the first
+                    let p = positions[a as usize];
+                    positions.push(p + Vec3::new(1e-4, 0.0, 0.0));
+                    positions.push(p + Vec3::new(0.0, 1e-4, 0.0));
+                    t = [a, positions.len() as u32 - 2, positions.len() as u32 - 1];
+                }
+                _ => {}
+            }
+            triangles.push(t);
+        }
+        Mesh::new(positions, None, None, triangles, false)
+    }
+
+    /// Several random meshes (with degenerate triangles) mixed with spheres in one BVH.
+    #[test]
+    fn random_meshes_with_degenerate_triangles() {
+        let mut rng = Pcg32::new(21, 3);
+        let mut shapes = vec![];
+        for k in 0..4 {
+            let centre = Vec3::new(k as f32 - 1.5, 0.3 * k as f32, 0.0);
+            shapes.push(shape(ShapeGeometry::Mesh(random_mesh(&mut rng, 200 + 150 * k, centre))));
+            shapes.push(shape(ShapeGeometry::Sphere(Sphere { center: centre + Vec3::Z, radius: 0.2, to_object: Transform::IDENTITY, flip_normals: false })));
+        }
+        let hits = check(&shapes, 10000, 23, Vec3::splat(-3.5), Vec3::splat(3.5));
+        assert!(hits > 1500, "{hits}");
+    }
+
+    /// A mesh of more triangles than one build thread takes, so the two
+    /// halves of the top nodes are built in parallel.
+    #[test]
+    fn large_random_mesh_parallel_build() {
+        let mut rng = Pcg32::new(5, 8);
+        let shapes = vec![shape(ShapeGeometry::Mesh(random_mesh(&mut rng, 3 * build::PAR_MIN_FOR_TESTS, Vec3::ZERO)))];
+        let hits = check(&shapes, 3000, 2, Vec3::splat(-2.0), Vec3::splat(2.0));
+        assert!(hits > 1000, "{hits}");
+        // The same tree as a serial build would make: every triangle in exactly one leaf.
+        let accel = Accel::build(&shapes);
+        let mut seen = vec![0u8; shapes[0].primitive_count()];
+        for t in &accel.tris {
+            seen[t.prim as usize] += 1;
+        }
+        assert!(seen.iter().all(|&c| c == 1));
+    }
+
+    /// Two-level BVH: random meshes placed by rotated, scaled and mirrored
+    /// instances, against brute force over the same meshes transformed to world space.
+    #[test]
+    fn instanced_meshes_agree_with_brute_force() {
+        let mut rng = Pcg32::new(77, 1);
+        let group_shapes = vec![
+            shape(ShapeGeometry::Mesh(random_mesh(&mut rng, 300, Vec3::ZERO))),
+            shape(ShapeGeometry::Sphere(Sphere { center: Vec3::new(0.5, 0.0, 0.0), radius: 0.3, to_object: Transform::IDENTITY, flip_normals: false })),
+            shape(ShapeGeometry::Mesh(random_mesh(&mut rng, 100, Vec3::new(0.0, 1.0, 0.0)))),
+        ];
+        // Shape 3 is a plain top-level mesh.
+        let mut all = group_shapes.clone();
+        all.push(shape(ShapeGeometry::Mesh(random_mesh(&mut rng, 150, Vec3::new(0.0, -3.0, 0.0)))));
+        let mut instances = vec![];
+        for k in 0..6 {
+            let m = Mat4::from_translation(Vec3::new(3.0 * (k % 3) as f32 - 3.0, 3.0 * (k / 3) as f32, 0.0))
+                * Mat4::from_rotation_y(k as f32 * 0.7)
+                * Mat4::from_scale(Vec3::new(if k == 4 { -0.8 } else { 0.8 }, 0.6 + 0.1 * k as f32, 0.7));
+            instances.push((Transform::from_matrix(m).unwrap(), 0u32));
+        }
+        let accel = Accel::build_instanced(&all, &[3], &[vec![0, 1, 2]], &instances);
+        let mut hits = 0;
+        for i in 0..4000 {
+            let o = Vec3::new(rng.next_f32() * 10.0 - 5.0, rng.next_f32() * 9.0 - 4.5, rng.next_f32() * 6.0 - 3.0);
+            let d = square_to_uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
+            let ray = Ray { o, d, tmax: if i % 4 == 0 { 2.0 } else { f32::INFINITY } };
+            // Brute force: the top mesh in world space, each instance in its own space.
+            let mut best: Option<(f32, u32, u32, u32)> = brute_force(&all[3..4], &ray).map(|(t, _, p, ..)| (t, 3, p, NO_INSTANCE));
+            for (k, (tf, _)) in instances.iter().enumerate() {
+                let local = Ray { o: tf.inverse_point(ray.o), d: tf.inverse_vector(ray.d), tmax: best.map_or(ray.tmax, |b| b.0) };
+                if let Some((t, s, p, ..)) = brute_force(&group_shapes, &local) {
+                    best = Some((t, s, p, k as u32));
+                }
+            }
+            let got = accel.intersect(&ray);
+            match (best, got) {
+                (None, None) => {}
+                (Some((t, s, p, inst)), Some(h)) => {
+                    hits += 1;
+                    assert!((h.t - t).abs() <= 1e-4 * t.max(1.0), "ray {i}: t {} vs {t}", h.t);
+                    if (h.shape, h.prim, h.instance) != (s, p, inst) {
+                        // A tie: the reported primitive is hit at the same t.
+                        let tf = if h.instance == NO_INSTANCE { Transform::IDENTITY } else { instances[h.instance as usize].0 };
+                        let local = Ray { o: tf.inverse_point(ray.o), d: tf.inverse_vector(ray.d), tmax: ray.tmax };
+                        let t2 = prim_t(&all, h.shape, h.prim, &local);
+                        assert!((t2 - t).abs() <= 1e-4 * t.max(1.0), "ray {i}: ({}, {}, {}) at {t2} vs {t}", h.shape, h.prim, h.instance);
+                    }
+                }
+                (b, g) => panic!("ray {i}: brute force {b:?}, accel {g:?}"),
+            }
+            assert_eq!(accel.occluded(&ray), best.is_some(), "ray {i}: occlusion");
+        }
+        assert!(hits > 800, "{hits}");
     }
 
     #[test]

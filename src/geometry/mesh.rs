@@ -13,13 +13,47 @@ use super::sphere::DirectionSample;
 use std::sync::Arc;
 use glam::{Vec2, Vec3};
 
+/// An immutable array shared by reference count: the mesh and the BVH
+/// (which reads triangles through it instead of copying them) hold the
+/// same buffer. Reads like a slice.
+#[derive(Debug)]
+pub struct Shared<T>(Arc<[T]>);
+
+impl<T> Clone for Shared<T> {
+    fn clone(&self) -> Self {
+        Shared(self.0.clone())
+    }
+}
+
+impl<T> From<Vec<T>> for Shared<T> {
+    fn from(v: Vec<T>) -> Self {
+        Shared(v.into())
+    }
+}
+
+impl<T> std::ops::Deref for Shared<T> {
+    type Target = [T];
+    #[inline(always)]
+    fn deref(&self) -> &[T] {
+        &self.0
+    }
+}
+
+impl<'a, T> IntoIterator for &'a Shared<T> {
+    type Item = &'a T;
+    type IntoIter = std::slice::Iter<'a, T>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.0.iter()
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct Mesh {
-    pub positions: Vec<Vec3>,
+    pub positions: Shared<Vec3>,
     /// Per-vertex shading normals, unit length, already flipped if needed.
     pub normals: Option<Vec<Vec3>>,
     pub uvs: Option<Vec<Vec2>>,
-    pub triangles: Vec<[u32; 3]>,
+    pub triangles: Shared<[u32; 3]>,
     /// Negate geometric and shading normals (Mitsuba's `flip_normals`).
     pub flip_normals: bool,
     /// Mesh attributes by name (`vertex_color`, `face_weight`, …); vertex
@@ -81,8 +115,16 @@ impl Mesh {
         triangles: Vec<[u32; 3]>,
         flip_normals: bool,
     ) -> Mesh {
-        let mut mesh =
-            Mesh { positions, normals, uvs, triangles, flip_normals, attributes: vec![], face_normals: vec![], area_distribution: Default::default() };
+        let mut mesh = Mesh {
+            positions: positions.into(),
+            normals,
+            uvs,
+            triangles: triangles.into(),
+            flip_normals,
+            attributes: vec![],
+            face_normals: vec![],
+            area_distribution: Default::default(),
+        };
         if let Some(ns) = &mut mesh.normals {
             for n in ns.iter_mut() {
                 *n = n.normalize_or_zero();
@@ -91,14 +133,16 @@ impl Mesh {
                 }
             }
         }
+        use rayon::prelude::*;
         mesh.face_normals = (0..mesh.triangles.len())
+            .into_par_iter()
             .map(|i| {
                 let [a, b, c] = mesh.vertices(i);
                 let n = (b - a).cross(c - a).normalize_or_zero();
                 if flip_normals { -n } else { n }
             })
             .collect();
-        let areas: Vec<f32> = (0..mesh.triangles.len()).map(|i| mesh.triangle_area(i)).collect();
+        let areas: Vec<f32> = (0..mesh.triangles.len()).into_par_iter().map(|i| mesh.triangle_area(i)).collect();
         mesh.area_distribution = DiscreteDistribution::new(areas);
         mesh
     }

@@ -129,19 +129,27 @@ pub fn read_obj(path: &Path) -> Result<RawMesh, String> {
     parse_obj(&text).map_err(|(line, e)| format!("cannot read OBJ file {}:{line}: {e}", path.display()))
 }
 
-/// One face corner: indices (0-based, already resolved) of position,
-/// texture coordinate and normal.
-type Corner = (u32, Option<u32>, Option<u32>);
+/// What one chunk of an OBJ file holds: its vertex data, its face corners
+/// as written (indices 1-based or negative, 0 where a texture coordinate or
+/// normal index is absent), where each face ends, its line (in the chunk)
+/// and the list sizes (in the chunk) when it was read.
+#[derive(Default)]
+struct ObjChunk {
+    positions: Vec<Vec3>,
+    texcoords: Vec<Vec2>,
+    normals: Vec<Vec3>,
+    corners: Vec<[i64; 3]>,
+    face_end: Vec<usize>,
+    face_line: Vec<usize>,
+    counts_at_face: Vec<[usize; 3]>,
+    all_uv: bool,
+    all_n: bool,
+    lines: usize,
+}
 
-/// [`read_obj`] on text; errors carry the 1-based line.
-pub fn parse_obj(text: &str) -> Result<RawMesh, (usize, String)> {
-    let mut positions: Vec<Vec3> = vec![];
-    let mut texcoords: Vec<Vec2> = vec![];
-    let mut vnormals: Vec<Vec3> = vec![];
-    // Faces as (line, corners), resolved once the whole file is read (a
-    // positive index may name a vertex given later).
-    let mut faces: Vec<(usize, Vec<(i64, Option<i64>, Option<i64>)>)> = vec![];
-    let mut counts_at_face: Vec<[usize; 3]> = vec![];
+/// Parses `text` (whole lines); errors carry the line within it (1-based).
+fn parse_obj_chunk(text: &str) -> Result<ObjChunk, (usize, String)> {
+    let mut c = ObjChunk { all_uv: true, all_n: true, ..Default::default() };
     let number = |tok: Option<&str>, what: &str, line: usize| -> Result<f32, (usize, String)> {
         let t = tok.ok_or_else(|| (line, format!("{what} is missing a number")))?;
         let v: f32 = t.parse().map_err(|_| (line, format!("\"{t}\" in {what} is not a number")))?;
@@ -152,13 +160,14 @@ pub fn parse_obj(text: &str) -> Result<RawMesh, (usize, String)> {
     };
     for (i, raw) in text.lines().enumerate() {
         let line = i + 1;
+        c.lines = line;
         let content = raw.split('#').next().unwrap_or("");
         let mut tokens = content.split_whitespace();
         let Some(keyword) = tokens.next() else { continue };
         match keyword {
             "v" => {
                 let p = Vec3::new(number(tokens.next(), "a vertex", line)?, number(tokens.next(), "a vertex", line)?, number(tokens.next(), "a vertex", line)?);
-                positions.push(p);
+                c.positions.push(p);
             }
             "vt" => {
                 let u = number(tokens.next(), "a texture coordinate", line)?;
@@ -166,14 +175,14 @@ pub fn parse_obj(text: &str) -> Result<RawMesh, (usize, String)> {
                     Some(t) => number(Some(t), "a texture coordinate", line)?,
                     None => 0.0,
                 };
-                texcoords.push(Vec2::new(u, 1.0 - v));
+                c.texcoords.push(Vec2::new(u, 1.0 - v));
             }
             "vn" => {
                 let n = Vec3::new(number(tokens.next(), "a normal", line)?, number(tokens.next(), "a normal", line)?, number(tokens.next(), "a normal", line)?);
-                vnormals.push(n);
+                c.normals.push(n);
             }
             "f" => {
-                let mut corners = vec![];
+                let first = c.corners.len();
                 for tok in tokens {
                     let mut parts = tok.split('/');
                     let index = |s: Option<&str>, what: &str| -> Result<Option<i64>, (usize, String)> {
@@ -193,22 +202,67 @@ pub fn parse_obj(text: &str) -> Result<RawMesh, (usize, String)> {
                     if parts.next().is_some() {
                         return Err((line, format!("\"{tok}\" is not a face vertex (v, v/vt, v//vn or v/vt/vn)")));
                     }
-                    corners.push((v, vt, vn));
+                    c.all_uv &= vt.is_some();
+                    c.all_n &= vn.is_some();
+                    c.corners.push([v, vt.unwrap_or(0), vn.unwrap_or(0)]);
                 }
-                if corners.len() < 3 {
-                    return Err((line, format!("a face has {} vertices; a face needs at least three", corners.len())));
+                let n = c.corners.len() - first;
+                if n < 3 {
+                    return Err((line, format!("a face has {n} vertices; a face needs at least three")));
                 }
-                faces.push((line, corners));
-                counts_at_face.push([positions.len(), texcoords.len(), vnormals.len()]);
+                c.face_end.push(c.corners.len());
+                c.face_line.push(line);
+                c.counts_at_face.push([c.positions.len(), c.texcoords.len(), c.normals.len()]);
             }
             _ => {}
         }
     }
-    if faces.is_empty() {
+    Ok(c)
+}
+
+/// [`read_obj`] on text; errors carry the 1-based line.
+///
+/// Large files are cut at line ends into pieces parsed in parallel; the
+/// result (and the first error, by line) is the same as reading it in one go.
+pub fn parse_obj(text: &str) -> Result<RawMesh, (usize, String)> {
+    use rayon::prelude::*;
+    // Pieces of about 1 MiB, cut after a newline.
+    const PIECE: usize = 1 << 20;
+    let bytes = text.as_bytes();
+    let mut cuts = vec![0];
+    while let Some(&last) = cuts.last() {
+        if last >= bytes.len() {
+            break;
+        }
+        let target = (last + PIECE).min(bytes.len());
+        let cut = bytes[target..].iter().position(|&b| b == b'\n').map_or(bytes.len(), |i| target + i + 1);
+        cuts.push(cut);
+    }
+    let pieces: Vec<&str> = cuts.windows(2).map(|w| &text[w[0]..w[1]]).collect();
+    let parsed: Vec<Result<ObjChunk, (usize, String)>> = pieces.par_iter().map(|p| parse_obj_chunk(p)).collect();
+    // Lines before each piece: a piece that ends with a newline has exactly
+    // `lines` lines; the last one may end without.
+    let mut chunks = Vec::with_capacity(parsed.len());
+    let mut line0 = 0;
+    for (r, p) in parsed.into_iter().zip(&pieces) {
+        match r {
+            Ok(c) => {
+                let n = p.bytes().filter(|&b| b == b'\n').count();
+                chunks.push((line0, c));
+                line0 += n;
+            }
+            Err((line, e)) => return Err((line0 + line, e)),
+        }
+    }
+    let total = |f: fn(&ObjChunk) -> usize| chunks.iter().map(|(_, c)| f(c)).sum::<usize>();
+    let (n_pos, n_tex, n_nrm) = (total(|c| c.positions.len()), total(|c| c.texcoords.len()), total(|c| c.normals.len()));
+    if chunks.iter().all(|(_, c)| c.face_end.is_empty()) {
         return Err((text.lines().count().max(1), "the mesh has no faces".into()));
     }
+    let all_uv = chunks.iter().all(|(_, c)| c.all_uv);
+    let all_n = chunks.iter().all(|(_, c)| c.all_n);
     // Resolve: positive indices against the whole file, negative ones
-    // against the lists as they were at the face.
+    // against the lists as they were at the face. Absent: u32::MAX.
     let resolve = |i: i64, total: usize, so_far: usize, what: &str, line: usize| -> Result<u32, (usize, String)> {
         let r = if i > 0 { i - 1 } else { so_far as i64 + i };
         if r < 0 || r >= total as i64 {
@@ -217,43 +271,75 @@ pub fn parse_obj(text: &str) -> Result<RawMesh, (usize, String)> {
         }
         Ok(r as u32)
     };
-    let mut corners_all: Vec<(usize, Vec<Corner>)> = Vec::with_capacity(faces.len());
-    let (mut all_uv, mut all_n) = (true, true);
-    for ((line, corners), counts) in faces.iter().zip(&counts_at_face) {
-        let mut out = Vec::with_capacity(corners.len());
-        for &(v, vt, vn) in corners {
-            let v = resolve(v, positions.len(), counts[0], "vertex", *line)?;
-            let vt = vt.map(|i| resolve(i, texcoords.len(), counts[1], "texture coordinate", *line)).transpose()?;
-            let vn = vn.map(|i| resolve(i, vnormals.len(), counts[2], "normal", *line)).transpose()?;
-            all_uv &= vt.is_some();
-            all_n &= vn.is_some();
-            out.push((v, vt, vn));
-        }
-        corners_all.push((*line, out));
+    let mut before = vec![[0usize; 3]; chunks.len()];
+    for k in 1..chunks.len() {
+        let c = &chunks[k - 1].1;
+        before[k] = [before[k - 1][0] + c.positions.len(), before[k - 1][1] + c.texcoords.len(), before[k - 1][2] + c.normals.len()];
     }
-    // One vertex per distinct (position, uv, normal) in use.
+    let resolved: Vec<Result<Vec<[u32; 3]>, (usize, String)>> = chunks
+        .par_iter()
+        .zip(&before)
+        .map(|((line0, c), b)| {
+            let mut out = Vec::with_capacity(c.corners.len());
+            let mut start = 0;
+            for ((&end, &line), counts) in c.face_end.iter().zip(&c.face_line).zip(&c.counts_at_face) {
+                let line = line0 + line;
+                for &[v, vt, vn] in &c.corners[start..end] {
+                    let v = resolve(v, n_pos, b[0] + counts[0], "vertex", line)?;
+                    let vt = if vt == 0 { u32::MAX } else { resolve(vt, n_tex, b[1] + counts[1], "texture coordinate", line)? };
+                    let vn = if vn == 0 { u32::MAX } else { resolve(vn, n_nrm, b[2] + counts[2], "normal", line)? };
+                    out.push([v, if all_uv { vt } else { u32::MAX }, if all_n { vn } else { u32::MAX }]);
+                }
+                start = end;
+            }
+            Ok(out)
+        })
+        .collect();
+    let mut corner_lists = Vec::with_capacity(resolved.len());
+    for r in resolved {
+        corner_lists.push(r?);
+    }
+    let positions: Vec<Vec3> = chunks.iter().flat_map(|(_, c)| c.positions.iter().copied()).collect();
+    let texcoords: Vec<Vec2> = if all_uv { chunks.iter().flat_map(|(_, c)| c.texcoords.iter().copied()).collect() } else { vec![] };
+    let vnormals: Vec<Vec3> = if all_n { chunks.iter().flat_map(|(_, c)| c.normals.iter().copied()).collect() } else { vec![] };
+    // One vertex per distinct (position, uv, normal) in use, in order of first use.
     let mut out = RawMesh::default();
     let mut uvs = vec![];
     let mut normals = vec![];
-    let mut map: std::collections::HashMap<Corner, u32> = std::collections::HashMap::new();
-    for (_, corners) in &corners_all {
-        let mut ids = Vec::with_capacity(corners.len());
-        for &(v, vt, vn) in corners {
-            let key = (v, vt.filter(|_| all_uv), vn.filter(|_| all_n));
-            let id = *map.entry(key).or_insert_with(|| {
-                out.positions.push(positions[v as usize]);
-                if all_uv {
-                    uvs.push(texcoords[vt.unwrap_or(0) as usize]);
+    let mut by_position = if all_uv || all_n { vec![] } else { vec![u32::MAX; n_pos] };
+    let mut map: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
+    let mut ids = vec![];
+    for ((_, c), corners) in chunks.iter().zip(&corner_lists) {
+        let mut start = 0;
+        for &end in &c.face_end {
+            ids.clear();
+            for &key in &corners[start..end] {
+                let [v, vt, vn] = key;
+                let new = out.positions.len() as u32;
+                let id = if by_position.is_empty() {
+                    *map.entry(key).or_insert(new)
+                } else {
+                    let slot = &mut by_position[v as usize];
+                    if *slot == u32::MAX {
+                        *slot = new;
+                    }
+                    *slot
+                };
+                if id == new {
+                    out.positions.push(positions[v as usize]);
+                    if all_uv {
+                        uvs.push(texcoords[vt as usize]);
+                    }
+                    if all_n {
+                        normals.push(vnormals[vn as usize]);
+                    }
                 }
-                if all_n {
-                    normals.push(vnormals[vn.unwrap_or(0) as usize]);
-                }
-                out.positions.len() as u32 - 1
-            });
-            ids.push(id);
-        }
-        for k in 1..ids.len() - 1 {
-            out.triangles.push([ids[0], ids[k], ids[k + 1]]);
+                ids.push(id);
+            }
+            for k in 1..ids.len() - 1 {
+                out.triangles.push([ids[0], ids[k], ids[k + 1]]);
+            }
+            start = end;
         }
     }
     out.normals = all_n.then_some(normals);
@@ -264,11 +350,239 @@ pub fn parse_obj(text: &str) -> Result<RawMesh, (usize, String)> {
 /// Reads an ASCII or binary PLY file with `vertex` (x, y, z and optionally
 /// nx, ny, nz and u, v / s, t / texture_u, texture_v) and `face`
 /// (`vertex_indices` or `vertex_index` lists; polygons are fanned).
+///
+/// Binary files whose vertices have only those properties and whose faces
+/// have only the index list (the usual layout) are read straight into the
+/// mesh buffers ([`read_binary_ply`]); any other file goes through
+/// `ply-rs-bw`, which also reads the extra properties as attributes.
 pub fn read_ply(path: &Path) -> Result<RawMesh, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("cannot open PLY file {}: {e}", path.display()))?;
+    if let Some(mesh) = read_binary_ply(&bytes).map_err(|e| format!("cannot read PLY file {}: {e}", path.display()))? {
+        return mesh.validate().map_err(|e| format!("{}: {e}", path.display()));
+    }
+    read_ply_generic(&bytes, path)
+}
+
+/// A PLY scalar type.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum PlyType {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    F32,
+    F64,
+}
+
+impl PlyType {
+    fn parse(s: &str) -> Option<PlyType> {
+        Some(match s {
+            "char" | "int8" => PlyType::I8,
+            "uchar" | "uint8" => PlyType::U8,
+            "short" | "int16" => PlyType::I16,
+            "ushort" | "uint16" => PlyType::U16,
+            "int" | "int32" => PlyType::I32,
+            "uint" | "uint32" => PlyType::U32,
+            "float" | "float32" => PlyType::F32,
+            "double" | "float64" => PlyType::F64,
+            _ => return None,
+        })
+    }
+
+    fn size(self) -> usize {
+        match self {
+            PlyType::I8 | PlyType::U8 => 1,
+            PlyType::I16 | PlyType::U16 => 2,
+            PlyType::I32 | PlyType::U32 | PlyType::F32 => 4,
+            PlyType::F64 => 8,
+        }
+    }
+
+    fn is_int(self) -> bool {
+        !matches!(self, PlyType::F32 | PlyType::F64)
+    }
+
+    /// The value at the start of `b` (which holds at least `size()` bytes).
+    #[inline(always)]
+    fn float(self, b: &[u8], big: bool) -> f32 {
+        macro_rules! get {
+            ($t:ty, $n:expr) => {{
+                let a: [u8; $n] = b[..$n].try_into().unwrap_or([0; $n]);
+                if big { <$t>::from_be_bytes(a) } else { <$t>::from_le_bytes(a) }
+            }};
+        }
+        match self {
+            PlyType::F32 => get!(f32, 4),
+            PlyType::F64 => get!(f64, 8) as f32,
+            _ => self.int(b, big) as f32,
+        }
+    }
+
+    /// The integer at the start of `b`; floats are truncated (callers check `is_int`).
+    #[inline(always)]
+    fn int(self, b: &[u8], big: bool) -> i64 {
+        macro_rules! get {
+            ($t:ty, $n:expr) => {{
+                let a: [u8; $n] = b[..$n].try_into().unwrap_or([0; $n]);
+                (if big { <$t>::from_be_bytes(a) } else { <$t>::from_le_bytes(a) }) as i64
+            }};
+        }
+        match self {
+            PlyType::I8 => b[0] as i8 as i64,
+            PlyType::U8 => b[0] as i64,
+            PlyType::I16 => get!(i16, 2),
+            PlyType::U16 => get!(u16, 2),
+            PlyType::I32 => get!(i32, 4),
+            PlyType::U32 => get!(u32, 4),
+            PlyType::F32 => get!(f32, 4),
+            PlyType::F64 => get!(f64, 8),
+        }
+    }
+}
+
+/// A PLY element of the header: name, count, and its properties as (name,
+/// list count type if a list, value type).
+struct PlyElement {
+    name: String,
+    count: usize,
+    props: Vec<(String, Option<PlyType>, PlyType)>,
+}
+
+/// The binary PLY reader: `Ok(None)` when the file is ASCII, its header
+/// does not parse, or its layout is not the plain one (vertices with
+/// positions, optional normals and uvs only; faces with the index list
+/// only; no other elements), which [`read_ply_generic`] then reads.
+/// Errors: data that ends early or a face with fewer than three
+/// vertices or an index out of range; counts are checked against the file
+/// size before anything is allocated.
+pub(crate) fn read_binary_ply(bytes: &[u8]) -> Result<Option<RawMesh>, String> {
+    let Some(end) = bytes.windows(11).position(|w| w == b"end_header\n").map(|i| i + 11) else { return Ok(None) };
+    let Ok(header) = std::str::from_utf8(&bytes[..end]) else { return Ok(None) };
+    let mut lines = header.lines();
+    if lines.next().map(str::trim) != Some("ply") {
+        return Ok(None);
+    }
+    let mut big = None;
+    let mut elements: Vec<PlyElement> = vec![];
+    for line in lines {
+        let t: Vec<&str> = line.split_whitespace().collect();
+        match t.as_slice() {
+            ["format", "binary_little_endian", _] => big = Some(false),
+            ["format", "binary_big_endian", _] => big = Some(true),
+            ["format", ..] => return Ok(None),
+            ["element", name, count] => match count.parse() {
+                Ok(count) => elements.push(PlyElement { name: name.to_string(), count, props: vec![] }),
+                Err(_) => return Ok(None),
+            },
+            ["property", "list", ct, it, name] => match (elements.last_mut(), PlyType::parse(ct), PlyType::parse(it)) {
+                (Some(e), Some(ct), Some(it)) => e.props.push((name.to_string(), Some(ct), it)),
+                _ => return Ok(None),
+            },
+            ["property", ty, name] => match (elements.last_mut(), PlyType::parse(ty)) {
+                (Some(e), Some(ty)) => e.props.push((name.to_string(), None, ty)),
+                _ => return Ok(None),
+            },
+            ["comment", ..] | ["obj_info", ..] | ["end_header"] | [] => {}
+            _ => return Ok(None),
+        }
+    }
+    let Some(big) = big else { return Ok(None) };
+    let [vertex, face] = elements.as_slice() else { return Ok(None) };
+    if vertex.name != "vertex" || face.name != "face" {
+        return Ok(None);
+    }
+    // Vertex layout: offsets of the properties we use, all scalars.
+    let find = |k: &str| vertex.props.iter().position(|p| p.0 == k);
+    let uv_keys = [("u", "v"), ("s", "t"), ("texture_u", "texture_v"), ("texture_s", "texture_t")]
+        .into_iter()
+        .find(|(a, b)| find(a).is_some() && find(b).is_some());
+    let has_normals = ["nx", "ny", "nz"].iter().all(|k| find(k).is_some());
+    let mut used = vec!["x", "y", "z"];
+    if has_normals {
+        used.extend(["nx", "ny", "nz"]);
+    }
+    if let Some((a, b)) = uv_keys {
+        used.extend([a, b]);
+    }
+    if vertex.props.iter().any(|p| p.1.is_some() || !used.contains(&p.0.as_str())) || used.iter().any(|k| find(k).is_none()) {
+        return Ok(None);
+    }
+    let mut offsets = vec![];
+    let mut stride = 0;
+    for p in &vertex.props {
+        offsets.push(stride);
+        stride += p.2.size();
+    }
+    let field = |k: &str| find(k).map(|i| (offsets[i], vertex.props[i].2));
+    let xyz = ["x", "y", "z"].map(|k| field(k).unwrap_or((0, PlyType::F32)));
+    let nxyz = ["nx", "ny", "nz"].map(|k| field(k).unwrap_or((0, PlyType::F32)));
+    let uv = uv_keys.map(|(a, b)| [a, b].map(|k| field(k).unwrap_or((0, PlyType::F32))));
+    let [(ref fname, Some(count_ty), index_ty)] = face.props[..] else { return Ok(None) };
+    if !(fname == "vertex_indices" || fname == "vertex_index") || !count_ty.is_int() || !index_ty.is_int() {
+        return Ok(None);
+    }
+
+    let mut data = &bytes[end..];
+    let n_v = vertex.count;
+    if n_v.checked_mul(stride).is_none_or(|len| len > data.len()) {
+        return Err(format!("the file ends before its {n_v} vertices"));
+    }
+    // Each face takes at least a count and three indices.
+    let min_face = count_ty.size() + 3 * index_ty.size();
+    if face.count.checked_mul(min_face).is_none_or(|len| len > data.len() - n_v * stride) {
+        return Err(format!("the file ends before its {} faces", face.count));
+    }
+    let vdata = &data[..n_v * stride];
+    let point = |rec: &[u8], f: &[(usize, PlyType); 3]| Vec3::new(f[0].1.float(&rec[f[0].0..], big), f[1].1.float(&rec[f[1].0..], big), f[2].1.float(&rec[f[2].0..], big));
+    let mut out = RawMesh::default();
+    let plain = !big && stride == 12 && xyz.iter().enumerate().all(|(k, &(o, t))| o == 4 * k && t == PlyType::F32);
+    if plain && cfg!(target_endian = "little") {
+        // x, y, z floats and nothing else: the data is the array itself.
+        out.positions = vdata.chunks_exact(12).map(|r| Vec3::new(f32::from_le_bytes([r[0], r[1], r[2], r[3]]), f32::from_le_bytes([r[4], r[5], r[6], r[7]]), f32::from_le_bytes([r[8], r[9], r[10], r[11]]))).collect();
+    } else {
+        out.positions = vdata.chunks_exact(stride).map(|r| point(r, &xyz)).collect();
+    }
+    if has_normals {
+        out.normals = Some(vdata.chunks_exact(stride).map(|r| point(r, &nxyz)).collect());
+    }
+    if let Some([(ou, tu), (ov, tv)]) = uv {
+        out.uvs = Some(vdata.chunks_exact(stride).map(|r| Vec2::new(tu.float(&r[ou..], big), tv.float(&r[ov..], big))).collect());
+    }
+    data = &data[n_v * stride..];
+    let (cs, is) = (count_ty.size(), index_ty.size());
+    out.triangles.reserve(face.count);
+    let mut poly: Vec<u32> = vec![];
+    for f in 0..face.count {
+        let Some(c) = data.get(..cs) else { return Err(format!("the file ends inside face {f}")) };
+        let n = count_ty.int(c, big);
+        if n < 3 {
+            return Err(format!("face {f} has {n} vertices; a face needs at least three"));
+        }
+        let n = n as usize;
+        let Some(list) = data.get(cs..cs + n * is) else { return Err(format!("the file ends inside face {f}")) };
+        poly.clear();
+        for k in 0..n {
+            let i = index_ty.int(&list[k * is..], big);
+            if i < 0 || i > u32::MAX as i64 {
+                return Err(format!("face {f} has a vertex index that is negative or too large ({i})"));
+            }
+            poly.push(i as u32);
+        }
+        for k in 1..n - 1 {
+            out.triangles.push([poly[0], poly[k], poly[k + 1]]);
+        }
+        data = &data[cs + n * is..];
+    }
+    Ok(Some(out))
+}
+
+/// Any PLY file, by `ply-rs-bw`, with extra properties as attributes.
+fn read_ply_generic(bytes: &[u8], path: &Path) -> Result<RawMesh, String> {
     use ply_rs_bw::parser::Parser;
     use ply_rs_bw::ply::{DefaultElement, Property};
-    let file = std::fs::File::open(path).map_err(|e| format!("cannot open PLY file {}: {e}", path.display()))?;
-    let mut reader = std::io::BufReader::new(file);
+    let mut reader = std::io::Cursor::new(bytes);
     let ply = Parser::<DefaultElement>::new()
         .read_ply(&mut reader)
         .map_err(|e| format!("cannot read PLY file {}: {e}", path.display()))?;
@@ -406,6 +720,179 @@ mod tests {
         // v is flipped: the vertex with vt 0 0 gets uv (0, 1).
         let i0 = m.positions.iter().position(|p| *p == Vec3::ZERO).unwrap();
         assert_eq!(uvs[i0], Vec2::new(0.0, 1.0));
+    }
+
+    /// A PLY file of `n` vertices with normals and uvs and faces of 3 to 5
+    /// vertices, in the given format, with positions as `pos_ty` and
+    /// indices as `idx_ty` (list counts as uchar).
+    fn ply_bytes(format: &str, pos_ty: &str, idx_ty: &str, n: usize) -> Vec<u8> {
+        let mut out = format!(
+            "ply\nformat {format} 1.0\ncomment test\nelement vertex {n}\nproperty {pos_ty} x\nproperty {pos_ty} y\nproperty {pos_ty} z\nproperty float nx\nproperty float ny\nproperty float nz\nproperty float u\nproperty float v\nelement face {}\nproperty list uchar {idx_ty} vertex_indices\nend_header\n",
+            n - 4
+        )
+        .into_bytes();
+        let big = format == "binary_big_endian";
+        let vertex = |k: usize| {
+            let f = k as f32;
+            ([f * 0.5, (f * 0.37).sin(), 1.0 / (f + 1.0)], [0.0, (f * 0.1).cos(), (f * 0.1).sin()], [f / n as f32, 1.0 - f / n as f32])
+        };
+        let face = |k: usize| (0..3 + k % 3).map(|j| ((k + 2 * j) % n) as u32).collect::<Vec<u32>>();
+        macro_rules! put {
+            ($v:expr) => {
+                out.extend(if big { $v.to_be_bytes().to_vec() } else { $v.to_le_bytes().to_vec() })
+            };
+        }
+        for k in 0..n {
+            let (p, nn, uv) = vertex(k);
+            if format == "ascii" {
+                out.extend(format!("{} {} {} {} {} {} {} {}\n", p[0], p[1], p[2], nn[0], nn[1], nn[2], uv[0], uv[1]).bytes());
+                continue;
+            }
+            for x in p {
+                if pos_ty == "double" { put!(x as f64) } else { put!(x) }
+            }
+            for x in nn.into_iter().chain(uv) {
+                put!(x);
+            }
+        }
+        for k in 0..n - 4 {
+            let f = face(k);
+            if format == "ascii" {
+                out.extend(format!("{} {}\n", f.len(), f.iter().map(|i| i.to_string()).collect::<Vec<_>>().join(" ")).bytes());
+                continue;
+            }
+            out.push(f.len() as u8);
+            for i in f {
+                match idx_ty {
+                    "ushort" => put!(i as u16),
+                    "uint" => put!(i),
+                    _ => put!(i as i32),
+                }
+            }
+        }
+        out
+    }
+
+    fn same_mesh(a: &RawMesh, b: &RawMesh) {
+        assert_eq!(a.positions, b.positions);
+        assert_eq!(a.normals, b.normals);
+        assert_eq!(a.uvs, b.uvs);
+        assert_eq!(a.triangles, b.triangles);
+        assert_eq!(a.attributes.len(), b.attributes.len());
+    }
+
+    /// Binary little and big endian PLY (float and double positions, int,
+    /// uint and ushort indices, polygons) read by the direct reader give the
+    /// same mesh as the general reader, and as the same data in ASCII.
+    #[test]
+    fn binary_ply_reader_matches_the_general_one() {
+        let dir = std::env::temp_dir().join(format!("snell-plyb-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let n = 300;
+        let ascii = ply_bytes("ascii", "float", "int", n);
+        assert!(read_binary_ply(&ascii).unwrap().is_none(), "ASCII goes to the general reader");
+        let reference = read_ply_generic(&ascii, Path::new("a.ply")).unwrap();
+        assert_eq!(reference.triangles.len(), (0..n - 4).map(|k| 1 + k % 3).sum::<usize>());
+        for format in ["binary_little_endian", "binary_big_endian"] {
+            for (pos_ty, idx_ty) in [("float", "int"), ("double", "uint"), ("float", "ushort")] {
+                let bytes = ply_bytes(format, pos_ty, idx_ty, n);
+                let direct = read_binary_ply(&bytes).unwrap().expect("the direct reader takes this layout");
+                let general = read_ply_generic(&bytes, Path::new("b.ply")).unwrap();
+                same_mesh(&direct, &general);
+                // ASCII prints floats exactly (shortest round trip), so the meshes agree.
+                same_mesh(&direct, &reference);
+                let p = dir.join(format!("{format}-{pos_ty}-{idx_ty}.ply"));
+                std::fs::write(&p, &bytes).unwrap();
+                same_mesh(&read_ply(&p).unwrap(), &reference);
+            }
+        }
+        // Plain x y z floats (the copy fast path), little endian.
+        let head = "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n";
+        let mut plain = head.as_bytes().to_vec();
+        for v in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.5]] {
+            v.iter().for_each(|x| plain.extend(x.to_le_bytes()));
+        }
+        for f in [[0i32, 1, 2], [0, 2, 3]] {
+            plain.push(3);
+            f.iter().for_each(|x| plain.extend(x.to_le_bytes()));
+        }
+        let m = read_binary_ply(&plain).unwrap().unwrap();
+        same_mesh(&m, &read_ply_generic(&plain, Path::new("c.ply")).unwrap());
+        assert_eq!(m.positions[3], Vec3::new(0.0, 1.0, 0.5));
+        assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+        // Truncated data, a lying count, a bad index and a two-vertex face are errors.
+        assert!(read_binary_ply(&plain[..plain.len() - 3]).unwrap_err().contains("ends"));
+        let with_head = |h: String| [h.as_bytes(), &plain[head.len()..]].concat();
+        assert!(read_binary_ply(&with_head(head.replace("vertex 4", "vertex 4000000000"))).unwrap_err().contains("ends"));
+        assert!(read_binary_ply(&with_head(head.replace("face 2", "face 2000000000"))).unwrap_err().contains("ends"));
+        let mut bad = plain.clone();
+        let at = bad.len() - 4;
+        bad[at..].copy_from_slice(&(-3i32).to_le_bytes());
+        assert!(read_binary_ply(&bad).unwrap_err().contains("negative"));
+        let mut short = plain.clone();
+        let at = short.len() - 13;
+        short[at] = 2;
+        assert!(read_binary_ply(&short).is_err());
+        // Extra vertex properties (attributes) go to the general reader.
+        let extra = with_head(head.replacen("property float z\n", "property float z\nproperty float quality\n", 1));
+        assert!(read_binary_ply(&extra).unwrap().is_none());
+    }
+
+    /// An OBJ big enough to be parsed in several pieces (quads, negative
+    /// indices, uvs, normals) gives the same mesh as its faces say, and
+    /// an error on a late line names that line.
+    #[test]
+    fn obj_in_parallel_pieces() {
+        let (nu, nv) = (300, 200);
+        let mut text = String::from("# grid\n");
+        let mut expected_tris = 0;
+        for j in 0..nv {
+            for i in 0..nu {
+                text += &format!("v {} {} {}\nvt {} {}\nvn 0 0 1\n", i as f32 * 0.1, j as f32 * 0.1, ((i * j) % 7) as f32 * 0.01, i as f32 / nu as f32, j as f32 / nv as f32);
+            }
+            if j > 0 {
+                for i in 0..nu - 1 {
+                    // Row j-1 by absolute index, row j relative to the end.
+                    let a = (j - 1) * nu + i + 1;
+                    let (c, d) = (i as i64 - nu as i64, i as i64 - nu as i64 + 1);
+                    if i % 2 == 0 {
+                        text += &format!("f {a}/{a}/{a} {}/{}/{} {d}/{d}/{d} {c}/{c}/{c}\n", a + 1, a + 1, a + 1);
+                        expected_tris += 2;
+                    } else {
+                        text += &format!("f {a}/{a}/{a} {}/{}/{} {d}/{d}/{d}\n", a + 1, a + 1, a + 1);
+                        expected_tris += 1;
+                    }
+                }
+            }
+        }
+        assert!(text.len() > 3 << 20, "several pieces ({} bytes)", text.len());
+        let m = parse_obj(&text).unwrap();
+        assert_eq!(m.triangles.len(), expected_tris);
+        // Every vertex is used (the top-right one of each row is not: nv of them).
+        assert!(m.positions.len() >= nu * nv - nv);
+        // Triangles reproduce their faces' positions: the first face's corners.
+        assert_eq!(m.positions[m.triangles[0][0] as usize], Vec3::new(0.0, 0.0, 0.0));
+        assert_eq!(m.positions[m.triangles[0][2] as usize], Vec3::new(0.1, 0.1, 0.01));
+        let uvs = m.uvs.as_ref().unwrap();
+        assert_eq!(uvs[m.triangles[0][1] as usize], Vec2::new(1.0 / nu as f32, 1.0));
+        // A bad line near the end is reported with its line number.
+        let lines = text.lines().count();
+        let bad = text.clone() + "v 1 2 oops\n";
+        assert_eq!(parse_obj(&bad).unwrap_err().0, lines + 1);
+        let bad = text.clone() + "f 1 2 999999999\n";
+        let e = parse_obj(&bad).unwrap_err();
+        assert_eq!(e.0, lines + 1);
+        assert!(e.1.contains("out of bounds"), "{}", e.1);
+        // A bad line in the middle wins over a later one.
+        let mut mid = String::new();
+        for (k, l) in text.lines().enumerate() {
+            mid += l;
+            mid += "\n";
+            if k == lines / 2 {
+                mid += "vn 1 x 2\n";
+            }
+        }
+        assert_eq!(parse_obj(&(mid + "v 1 2 oops\n")).unwrap_err().0, lines / 2 + 2);
     }
 
     #[test]

@@ -1,6 +1,11 @@
 //! Binary BVH construction by the surface area heuristic: an exact sweep
-//! over sorted centroids for small nodes, binning for large ones. The result
-//! is collapsed into the 8-wide BVH that traversal uses (see `accel.rs`).
+//! over sorted centroids for small nodes, binning for large ones; the two
+//! halves of large nodes are built in parallel (rayon). The result is
+//! collapsed into the 8-wide BVH that traversal uses (see `accel.rs`).
+//!
+//! Memory: a primitive is a 28-byte `Item` (its box and an id) while the
+//! tree is built, and a node 32 bytes; the items are dropped before the
+//! wide BVH is made.
 
 use glam::Vec3A;
 
@@ -8,12 +13,19 @@ use glam::Vec3A;
 /// of up to `PACKET` triangles, or one other primitive).
 const COST_TRAVERSE: f32 = 1.0;
 const COST_UNIT: f32 = 1.0;
-/// Nodes at most this size use the exact SAH sweep.
-const SWEEP_MAX: usize = 128;
+/// Nodes at most this size use the exact SAH sweep (three sorts per node:
+/// worth it only near the leaves).
+const SWEEP_MAX: usize = 24;
 const BINS: usize = 32;
 /// Past this depth, nodes split at the object median: depth stays bounded
 /// (and with it the traversal stack) whatever the input.
 const MAX_SAH_DEPTH: u32 = 48;
+/// Nodes with more items than this, above `PAR_DEPTH`, build their two
+/// halves on two threads.
+const PAR_MIN: usize = 8192;
+const PAR_DEPTH: u32 = 6;
+#[cfg(test)]
+pub const PAR_MIN_FOR_TESTS: usize = PAR_MIN;
 
 #[derive(Clone, Copy, Debug)]
 pub struct Aabb {
@@ -47,33 +59,72 @@ impl Aabb {
     }
 }
 
+/// A node of the binary BVH: its box, and either two children (`count`
+/// is `INNER`, `a` and `b` their indices) or a leaf (`count` items of
+/// `order` from `a`).
 #[derive(Clone, Copy, Debug)]
-pub enum Node2 {
-    Inner { bounds: Aabb, left: u32, right: u32 },
-    Leaf { bounds: Aabb, start: u32, count: u32 },
+pub struct Node2 {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    pub a: u32,
+    pub b: u32,
+    pub count: u32,
 }
+
+pub const INNER: u32 = u32::MAX;
 
 impl Node2 {
     pub fn bounds(&self) -> Aabb {
-        match *self {
-            Node2::Inner { bounds, .. } | Node2::Leaf { bounds, .. } => bounds,
-        }
+        Aabb { lo: self.lo.into(), hi: self.hi.into() }
+    }
+
+    pub fn is_inner(&self) -> bool {
+        self.count == INNER
+    }
+
+    fn new(b: Aabb, a: u32, bb: u32, count: u32) -> Node2 {
+        Node2 { lo: b.lo.into(), hi: b.hi.into(), a, b: bb, count }
     }
 }
 
 pub struct Bvh2 {
     /// Root first.
     pub nodes: Vec<Node2>,
-    /// Primitive indices in leaf order; leaves index ranges of this.
+    /// Primitive ids in leaf order; leaves index ranges of this.
     pub order: Vec<u32>,
 }
 
-#[derive(Clone, Copy)]
-struct Item {
-    bounds: Aabb,
-    centroid: Vec3A,
-    index: u32,
-    tri: bool,
+/// A primitive to build over: its box and id. Ids with the `OTHER` bit
+/// are non-triangles (one leaf unit each); the others are triangles
+/// (packed `PACKET` to a unit).
+#[derive(Clone, Copy, Debug)]
+pub struct Item {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    pub id: u32,
+}
+
+pub const OTHER: u32 = 1 << 31;
+
+impl Item {
+    pub fn new(b: Aabb, id: u32) -> Item {
+        Item { lo: b.lo.into(), hi: b.hi.into(), id }
+    }
+
+    #[inline(always)]
+    fn bounds(&self) -> Aabb {
+        Aabb { lo: self.lo.into(), hi: self.hi.into() }
+    }
+
+    #[inline(always)]
+    fn centroid(&self) -> Vec3A {
+        self.bounds().centroid()
+    }
+
+    #[inline(always)]
+    fn tri(&self) -> bool {
+        self.id & OTHER == 0
+    }
 }
 
 /// Triangles per SIMD test.
@@ -85,20 +136,14 @@ fn units(tris: usize, others: usize) -> f32 {
     (tris.div_ceil(PACKET) + others) as f32
 }
 
-/// `boxes[i]` bounds primitive i; `is_tri[i]` says whether it is a triangle
-/// (packed `PACKET` to a SIMD test). Leaves hold at most `max_leaf` primitives.
-pub fn build(boxes: &[Aabb], is_tri: &[bool], max_leaf: usize) -> Bvh2 {
-    let mut items: Vec<Item> = boxes
-        .iter()
-        .zip(is_tri)
-        .enumerate()
-        .map(|(i, (&b, &tri))| Item { bounds: b, centroid: b.centroid(), index: i as u32, tri })
-        .collect();
-    let mut nodes = Vec::with_capacity(2 * items.len() / max_leaf.max(1) + 1);
+/// A BVH over `items`; leaves hold at most `max_leaf` primitives.
+pub fn build(mut items: Vec<Item>, max_leaf: usize) -> Bvh2 {
+    let mut nodes = Vec::new();
     if !items.is_empty() {
         build_rec(&mut items, 0, 0, max_leaf.max(1), &mut nodes);
     }
-    Bvh2 { nodes, order: items.iter().map(|it| it.index).collect() }
+    nodes.shrink_to_fit();
+    Bvh2 { nodes, order: items.iter().map(|it| it.id).collect() }
 }
 
 struct Split {
@@ -109,16 +154,16 @@ struct Split {
 
 fn build_rec(items: &mut [Item], offset: usize, depth: u32, max_leaf: usize, nodes: &mut Vec<Node2>) -> u32 {
     let id = nodes.len() as u32;
-    let bounds = items.iter().fold(Aabb::EMPTY, |b, it| b.union(it.bounds));
+    let (bounds, cbounds, tris) = items.iter().fold((Aabb::EMPTY, Aabb::EMPTY, 0), |(b, c, t), it| {
+        let ib = it.bounds();
+        (b.union(ib), c.grow(ib.centroid()), t + it.tri() as usize)
+    });
     let n = items.len();
-    let tris = items.iter().filter(|it| it.tri).count();
-    let leaf = Node2::Leaf { bounds, start: offset as u32, count: n as u32 };
-    nodes.push(leaf);
+    nodes.push(Node2::new(bounds, offset as u32, 0, n as u32));
     if n <= 1 {
         return id;
     }
     let leaf_cost = COST_UNIT * units(tris, n - tris);
-    let cbounds = items.iter().fold(Aabb::EMPTY, |b, it| b.grow(it.centroid));
     let degenerate = (cbounds.hi - cbounds.lo).max_element() <= 0.0;
     let split = if degenerate || depth >= MAX_SAH_DEPTH {
         None
@@ -136,14 +181,36 @@ fn build_rec(items: &mut [Item], offset: usize, depth: u32, max_leaf: usize, nod
             let ext = cbounds.hi - cbounds.lo;
             let axis = if ext.x >= ext.y && ext.x >= ext.z { 0 } else if ext.y >= ext.z { 1 } else { 2 };
             let mid = n / 2;
-            items.select_nth_unstable_by(mid, |a, b| a.centroid[axis].total_cmp(&b.centroid[axis]));
+            items.select_nth_unstable_by(mid, |a, b| a.centroid()[axis].total_cmp(&b.centroid()[axis]));
             mid
         }
     };
     let (l, r) = items.split_at_mut(left);
-    let li = build_rec(l, offset, depth + 1, max_leaf, nodes);
-    let ri = build_rec(r, offset + left, depth + 1, max_leaf, nodes);
-    nodes[id as usize] = Node2::Inner { bounds, left: li, right: ri };
+    let (li, ri) = if n > PAR_MIN && depth < PAR_DEPTH {
+        // Each half into its own list, then appended with indices shifted:
+        // the same tree as the serial order gives.
+        let sub = |items: &mut [Item], offset: usize| {
+            let mut v = Vec::new();
+            build_rec(items, offset, depth + 1, max_leaf, &mut v);
+            v
+        };
+        let (lv, rv) = rayon::join(|| sub(l, offset), || sub(r, offset + left));
+        let mut append = |v: Vec<Node2>| {
+            let base = nodes.len() as u32;
+            nodes.extend(v.into_iter().map(|mut nd| {
+                if nd.is_inner() {
+                    nd.a += base;
+                    nd.b += base;
+                }
+                nd
+            }));
+            base
+        };
+        (append(lv), append(rv))
+    } else {
+        (build_rec(l, offset, depth + 1, max_leaf, nodes), build_rec(r, offset + left, depth + 1, max_leaf, nodes))
+    };
+    nodes[id as usize] = Node2::new(bounds, li, ri, INNER);
     id
 }
 
@@ -155,18 +222,18 @@ fn sweep_split(items: &mut [Item], parent_area: f32) -> Option<Split> {
     let mut best: Option<(Split, usize)> = None;
     let mut right_cost = vec![0.0f32; n];
     for axis in 0..3 {
-        items.sort_by(|a, b| a.centroid[axis].total_cmp(&b.centroid[axis]).then(a.index.cmp(&b.index)));
+        items.sort_unstable_by(|a, b| (a.lo[axis] + a.hi[axis]).total_cmp(&(b.lo[axis] + b.hi[axis])).then(a.id.cmp(&b.id)));
         // right_cost[i]: area × units of items[i..].
         let (mut b, mut t) = (Aabb::EMPTY, 0);
         for i in (1..n).rev() {
-            b = b.union(items[i].bounds);
-            t += items[i].tri as usize;
+            b = b.union(items[i].bounds());
+            t += items[i].tri() as usize;
             right_cost[i] = b.half_area() * units(t, n - i - t);
         }
         let (mut b, mut t) = (Aabb::EMPTY, 0);
         for i in 1..n {
-            b = b.union(items[i - 1].bounds);
-            t += items[i - 1].tri as usize;
+            b = b.union(items[i - 1].bounds());
+            t += items[i - 1].tri() as usize;
             let cost = COST_TRAVERSE + COST_UNIT * (b.half_area() * units(t, i - t) + right_cost[i]) * inv_area;
             if best.as_ref().is_none_or(|(s, _)| cost < s.cost) {
                 best = Some((Split { cost, left: i }, axis));
@@ -175,7 +242,7 @@ fn sweep_split(items: &mut [Item], parent_area: f32) -> Option<Split> {
     }
     let (split, axis) = best?;
     if axis != 2 {
-        items.sort_by(|a, b| a.centroid[axis].total_cmp(&b.centroid[axis]).then(a.index.cmp(&b.index)));
+        items.sort_unstable_by(|a, b| (a.lo[axis] + a.hi[axis]).total_cmp(&(b.lo[axis] + b.hi[axis])).then(a.id.cmp(&b.id)));
     }
     Some(split)
 }
@@ -185,21 +252,26 @@ fn binned_split(items: &mut [Item], parent_area: f32, cbounds: Aabb) -> Option<S
     let inv_area = 1.0 / parent_area.max(f32::MIN_POSITIVE);
     let ext = cbounds.hi - cbounds.lo;
     let mut best: Option<(f32, usize, usize)> = None; // cost, axis, bins left of the split
+    // One pass over the items fills the bins of all three axes.
+    let scale = Vec3A::select(ext.cmpgt(Vec3A::ZERO), Vec3A::splat(BINS as f32) / ext, Vec3A::ZERO);
+    let mut bb = [[Aabb::EMPTY; BINS]; 3];
+    let mut tri = [[0usize; BINS]; 3];
+    let mut cnt = [[0usize; BINS]; 3];
+    for it in items.iter() {
+        let b = it.bounds();
+        let k = ((b.centroid() - cbounds.lo) * scale).to_array();
+        for axis in 0..3 {
+            let k = (k[axis] as usize).min(BINS - 1);
+            bb[axis][k] = bb[axis][k].union(b);
+            cnt[axis][k] += 1;
+            tri[axis][k] += it.tri() as usize;
+        }
+    }
     for axis in 0..3 {
         if ext[axis] <= 0.0 {
             continue;
         }
-        let scale = BINS as f32 / ext[axis];
-        let bin_of = |c: f32| (((c - cbounds.lo[axis]) * scale) as usize).min(BINS - 1);
-        let mut bb = [Aabb::EMPTY; BINS];
-        let mut tri = [0usize; BINS];
-        let mut cnt = [0usize; BINS];
-        for it in items.iter() {
-            let k = bin_of(it.centroid[axis]);
-            bb[k] = bb[k].union(it.bounds);
-            cnt[k] += 1;
-            tri[k] += it.tri as usize;
-        }
+        let (bb, tri, cnt) = (&bb[axis], &tri[axis], &cnt[axis]);
         let mut right_cost = [0.0f32; BINS];
         let (mut b, mut t, mut c) = (Aabb::EMPTY, 0, 0);
         for k in (1..BINS).rev() {
@@ -228,7 +300,7 @@ fn binned_split(items: &mut [Item], parent_area: f32, cbounds: Aabb) -> Option<S
     // In-place partition.
     let mut left = 0;
     for i in 0..items.len() {
-        if bin_of(items[i].centroid[axis]) < k {
+        if bin_of(items[i].centroid()[axis]) < k {
             items.swap(i, left);
             left += 1;
         }
