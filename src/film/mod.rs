@@ -34,10 +34,12 @@
 //! centre c lies within the filter's radius, with weight w = filter(c − p);
 //! a pixel's value is Σ w·L / Σ w.
 
+pub mod accumulator;
 pub mod filter;
 pub mod output;
 pub mod stokes;
 
+pub use accumulator::{FilmState, Layout, Sink, StateHeader};
 pub use filter::{Filter, FilterKind};
 
 use crate::spectrum::Rgb;
