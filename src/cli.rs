@@ -328,7 +328,7 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     let passes = args.passes.unwrap_or(DEFAULT_PASSES);
     let render_options = RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()), passes, ..RenderOptions::default() };
     let write_all = |image: &crate::film::Image, state: Option<&crate::film::FilmState>| -> anyhow::Result<()> {
-        let meta = checkpoint.metadata(state, checkpoints);
+        let meta = checkpoint.metadata(state);
         for o in &outputs {
             write_image_with(image, o, &meta)?;
         }
@@ -357,8 +357,7 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     }
     // An interrupted render keeps its state (when it has a complete pass) so
     // that --resume can continue it.
-    let keep = stats.interrupted && state.header.complete;
-    write_all(&image, Some(&state).filter(|_| keep || checkpoints))?;
+    write_all(&image, Some(&state))?;
     if let Some(path) = &args.stats {
         let mut json = serde_json::to_value(&stats)?;
         json["load_seconds"] = load_seconds.into();
@@ -409,6 +408,16 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The EXR header attribute saying which render an output is of and which
+/// samples it holds: `samples=0-64; scene=…; mode=rgb; size=…; spp=64; seed=0`
+/// (`samples=partial` for an interrupted first pass).
+pub const RENDER_ATTRIBUTE: &str = "snell.render";
+
+/// The `name=value` fields of a [`RENDER_ATTRIBUTE`].
+pub fn parse_fields(text: &str) -> Vec<(String, String)> {
+    text.split(';').filter_map(|f| f.split_once('=')).map(|(k, v)| (k.trim().to_string(), v.trim().to_string())).collect()
+}
+
 /// What a checkpoint's EXR header says about the render it holds, to check
 /// that `--resume` continues the same render.
 struct Checkpoint {
@@ -428,27 +437,30 @@ impl Checkpoint {
         let [ox, oy, w, h] = scene.film.crop;
         Checkpoint {
             identity: vec![
-                ("snell.scene", format!("{:016x}", crate::math::rng::mix64(digest))),
-                ("snell.mode", crate::Mode::from(args.mode).name().to_string()),
-                ("snell.size", format!("{}x{} crop {w}x{h}+{ox}+{oy}", scene.film.width, scene.film.height)),
-                ("snell.spp", scene.sampler.sample_count.to_string()),
-                ("snell.seed", scene.sampler.seed.to_string()),
+                ("scene", format!("{:016x}", crate::math::rng::mix64(digest))),
+                ("mode", crate::Mode::from(args.mode).name().to_string()),
+                ("size", format!("{}x{} crop {w}x{h}+{ox}+{oy}", scene.film.width, scene.film.height)),
+                ("spp", scene.sampler.sample_count.to_string()),
+                ("seed", scene.sampler.seed.to_string()),
             ],
             sample_count: scene.sampler.sample_count,
         }
     }
 
-    /// The header attributes of an output holding `state` (with the state
-    /// itself if `exact`).
-    fn metadata(&self, state: Option<&crate::film::FilmState>, exact: bool) -> ExrMetadata {
+    /// The header attributes of an output holding `state`: which samples it
+    /// holds, and the exact state itself when the render can be resumed (a
+    /// complete pass, not the last).
+    fn metadata(&self, state: Option<&crate::film::FilmState>) -> ExrMetadata {
         let mut meta = ExrMetadata::default();
-        meta.text = self.identity.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
         let samples = match state {
             Some(s) if s.header.complete => s.ranges().iter().map(|r| format!("{}-{}", r.start, r.end)).collect::<Vec<_>>().join(","),
             _ => "partial".to_string(),
         };
-        meta.text.push(("snell.samples".into(), samples));
-        if let Some(s) = state.filter(|s| exact && s.header.complete) {
+        // One attribute (EXR writers order attributes as they like; one
+        // keeps the file a function of the image).
+        let fields: Vec<String> = std::iter::once(format!("samples={samples}")).chain(self.identity.iter().map(|(k, v)| format!("{k}={v}"))).collect();
+        meta.text.push((RENDER_ATTRIBUTE.into(), fields.join("; ")));
+        if let Some(s) = state.filter(|s| s.header.complete && !s.is_finished()) {
             meta.state = Some(s.to_bytes());
         }
         meta
@@ -459,25 +471,26 @@ impl Checkpoint {
     /// or holds no state.
     fn read(&self, path: &Path) -> anyhow::Result<Option<crate::film::FilmState>> {
         let meta = crate::film::output::read_exr_metadata(path).with_context(|| format!("--resume {}", path.display()))?;
-        let get = |k: &str| meta.text.iter().find(|(n, _)| n == k).map(|(_, v)| v.as_str());
-        if get("snell.samples").is_none() {
-            anyhow::bail!("--resume {}: not a Snell checkpoint (its header has no snell.samples attribute)", path.display());
+        let fields = meta.text.iter().find(|(n, _)| n == RENDER_ATTRIBUTE).map(|(_, v)| parse_fields(v)).unwrap_or_default();
+        let get = |k: &str| fields.iter().find(|(n, _)| n == k).map(|(_, v)| v.as_str());
+        if get("samples").is_none() {
+            anyhow::bail!("--resume {}: not a Snell checkpoint (its header has no {RENDER_ATTRIBUTE} attribute)", path.display());
         }
         for (name, value) in &self.identity {
             let saved = get(name).unwrap_or("none");
             if saved != value {
-                let what = name.trim_start_matches("snell.");
+                let what = name;
                 anyhow::bail!(
                     "--resume {}: the checkpoint is of another render ({what} {saved}, this render's {what} is {value}); resume with the same scene, -D, --width, --spp, --seed and --mode",
                     path.display()
                 );
             }
         }
-        if get("snell.samples") == Some(&format!("0-{}", self.sample_count)) {
+        if get("samples") == Some(&format!("0-{}", self.sample_count)) {
             return Ok(None);
         }
         let bytes = meta.state.ok_or_else(|| {
-            anyhow::anyhow!("--resume {}: holds no resumable state (samples {}); render it again without --resume", path.display(), get("snell.samples").unwrap_or("?"))
+            anyhow::anyhow!("--resume {}: holds no resumable state (samples {}); render it again without --resume", path.display(), get("samples").unwrap_or("?"))
         })?;
         let state = crate::film::FilmState::from_bytes(&bytes).with_context(|| format!("--resume {}", path.display()))?;
         Ok(Some(state))

@@ -195,6 +195,17 @@ fn wait_for(child: &mut std::process::Child, seconds: u64) -> std::process::Exit
     }
 }
 
+/// The `samples` field of an output's `snell.render` header attribute.
+fn samples_of(path: &Path) -> String {
+    let meta = snell::film::output::read_exr_metadata(path).unwrap();
+    let text = &meta.text.iter().find(|(k, _)| k == snell::cli::RENDER_ATTRIBUTE).expect("snell.render attribute").1;
+    let fields = snell::cli::parse_fields(text);
+    for key in ["samples", "spp", "seed", "mode", "size", "scene"] {
+        assert!(fields.iter().any(|(k, _)| k == key), "{key} missing in {text}");
+    }
+    fields.into_iter().find(|(k, _)| k == "samples").unwrap().1
+}
+
 fn exr_bits(path: &Path) -> Vec<u32> {
     bits(&snell::film::output::read_exr(path).unwrap_or_else(|e| panic!("{e}")))
 }
@@ -223,7 +234,7 @@ fn an_interrupted_render_resumes_to_the_uninterrupted_image() {
     assert_eq!(status.code(), Some(130), "{stderr}");
     assert!(stderr.contains("wrote the last complete pass") && stderr.contains("--resume"), "{stderr}");
     let meta = snell::film::output::read_exr_metadata(&part).unwrap();
-    let samples = &meta.text.iter().find(|(k, _)| k == "snell.samples").unwrap().1;
+    let samples = samples_of(&part);
     assert!(samples.starts_with("0-") && samples != "0-4096" && meta.state.is_some(), "{samples}");
     // Every pixel has the same samples: none is black.
     let img = snell::film::output::read_exr(&part).unwrap();
@@ -241,8 +252,8 @@ fn an_interrupted_render_resumes_to_the_uninterrupted_image() {
     let (code, err) = run(&["render", s(&scene), spp, "--threads", "2", "--passes", "3", "--resume", s(&part)]);
     assert_eq!(code, Some(0), "{err}");
     assert!(exr_bits(&part) == exr_bits(&full), "the resumed image differs from the uninterrupted one");
-    let meta = snell::film::output::read_exr_metadata(&part).unwrap();
-    assert!(meta.text.contains(&("snell.samples".to_string(), "0-4096".to_string())), "{:?}", meta.text);
+    assert_eq!(samples_of(&part), "0-4096");
+    assert!(snell::film::output::read_exr_metadata(&part).unwrap().state.is_none(), "a finished render needs no state");
     // Resuming a finished render does nothing.
     let (code, err) = run(&["render", s(&scene), spp, "--resume", s(&part)]);
     assert_eq!(code, Some(0), "{err}");
@@ -275,4 +286,24 @@ fn a_render_killed_while_writing_checkpoints_leaves_a_valid_exr() {
         assert!(names.iter().all(|n| n == "scene.xml" || n == "out.exr" || n.starts_with(".out.exr.tmp-")), "{names:?}");
     }
     assert!(out.exists(), "no checkpoint was written in 820 ms");
+}
+
+#[test]
+fn bad_pass_and_checkpoint_flags_are_clear_errors() {
+    let (dir, scene) = setup("flags");
+    let exr = dir.join("o.exr");
+    let (code, err) = run(&["render", s(&scene), "--passes", "0", "-o", s(&exr)]);
+    assert!(code == Some(1) && err.contains("--passes must be at least 1"), "{err}");
+    let (code, err) = run(&["render", s(&scene), "--write-every", "-1", "-o", s(&exr)]);
+    assert!(code == Some(1) && err.contains("--write-every"), "{err}");
+    let (code, err) = run(&["render", s(&scene), "--write-every", "5", "-o", s(&dir.join("o.png"))]);
+    assert!(code == Some(1) && err.contains("need an .exr output"), "{err}");
+    let (code, err) = run(&["render", s(&scene), "--resume", s(&dir.join("missing.exr"))]);
+    assert!(code == Some(1) && err.contains("missing.exr"), "{err}");
+    // An EXR that is not a checkpoint.
+    let plain = dir.join("plain.exr");
+    snell::film::output::write_image(&Image::new(2, 2, vec![Rgb::WHITE; 4]), &plain).unwrap();
+    let (code, err) = run(&["render", s(&scene), "--resume", s(&plain)]);
+    assert!(code == Some(1) && err.contains("not a Snell checkpoint"), "{err}");
+    assert!(!exr.exists());
 }

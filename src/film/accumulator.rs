@@ -17,16 +17,20 @@
 //! # Range and precision
 //!
 //! Each accumulator is an `i128` counting units of 2^−[`FRACTION_BITS`]
-//! (2^−40 ≈ 9.1·10^−13). One term (a sample's filter-weighted value, a
-//! weight, or one splat) is truncated toward zero to that unit — an error
-//! below 10^−12 in absolute value, far below an `f32` pixel's own precision
-//! for any value above 10^−5 — and clamped to ±2^46 ≈ ±7·10^13 (a sample
-//! brighter than that is a firefly no image can show). A pixel receives
-//! terms from at most the 9 × 9 pixels of the widest filter footprint, each
-//! with at most 2^32 samples (sample indices are `u32`), so camera sums stay
-//! below 2^86 · 81 · 2^32 < 2^125 and cannot overflow. Splats (light
-//! tracing, any number per path) and merges add with saturation instead.
-//! NaN terms count as zero (the render loop zeroes and counts them before).
+//! (2^−52). A sample's values are rounded once to multiples of 2^−32
+//! (≈ 2.3·10^−10, far below an `f32` pixel's precision for any value above
+//! 10^−3, and unbiased: rounded to nearest), clamped to ±2^31 ≈ ±2.1·10^9 (a
+//! sample brighter than that is a firefly no image can show); each filter
+//! weight is truncated to a multiple of 2^−20 (≈ 10^−6, the same weight in
+//! a pixel's sum and in its sum of weights, so the pixel stays a weighted
+//! mean). A term w·v is then an exact integer product, below 2^20 · 2^63 =
+//! 2^83 units. A pixel receives terms from at most the 9 × 9 pixels of the
+//! widest filter footprint, each with at most 2^32 samples (sample indices
+//! are `u32`), so camera sums stay below 2^83 · 81 · 2^32 < 2^122 and cannot
+//! overflow. Splats (light tracing: any number per path) and merges add with
+//! saturation instead. NaN values count as zero (the render loop zeroes and
+//! counts them before). Quantising per term costs an integer multiply-add
+//! per pixel and channel where a float sum costs a fused multiply-add.
 
 use super::{Channel, Filter, Image, Layer, PixelFormat};
 use crate::spectrum::Rgb;
@@ -34,20 +38,34 @@ use glam::Vec2;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 
-/// Fractional bits of the fixed-point accumulators.
-pub const FRACTION_BITS: u32 = 40;
+/// Fractional bits of the fixed-point accumulators: those of a value plus
+/// those of a weight.
+pub const FRACTION_BITS: u32 = VALUE_BITS + WEIGHT_BITS;
+/// Fractional bits of a sample's values, and of a filter weight.
+pub const VALUE_BITS: u32 = 32;
+pub const WEIGHT_BITS: u32 = 20;
+const VALUE_SCALE: f64 = (1u64 << VALUE_BITS) as f64;
+const WEIGHT_SCALE: f32 = (1u32 << WEIGHT_BITS) as f32;
 const SCALE: f64 = (1u64 << FRACTION_BITS) as f64;
-/// Largest magnitude of one term in fixed point: 2^86 (2^46 in film units).
-const MAX_TERM: f64 = 77_371_252_455_336_267_181_195_264.0;
-/// Below this, a scaled term converts through the (native) `i64` path.
-const I64_SAFE: f64 = 9.0e18;
 
-/// One term, `v` in film units, as a fixed-point integer (truncated toward
-/// zero, clamped to ±2^86, NaN as zero).
+/// A sample's value in units of 2^−32: rounded to nearest, saturated to
+/// the `i64` range (±2^31 in film units), NaN as zero.
 #[inline(always)]
-pub fn fixed(v: f64) -> i128 {
-    let x = v * SCALE;
-    if x.abs() < I64_SAFE { x as i64 as i128 } else { x.clamp(-MAX_TERM, MAX_TERM) as i128 }
+pub fn fixed_value(v: f32) -> i64 {
+    let x = v as f64 * VALUE_SCALE;
+    (x + 0.5f64.copysign(x)) as i64
+}
+
+/// A filter weight in units of 2^−20: truncated, within ±1.
+#[inline(always)]
+pub fn fixed_weight(w: f32) -> i64 {
+    ((w * WEIGHT_SCALE) as i32).clamp(-(1 << WEIGHT_BITS), 1 << WEIGHT_BITS) as i64
+}
+
+/// The exact term `w`·`v` of fixed-point weight and value, in units of 2^−52.
+#[inline(always)]
+pub fn term(w: i64, v: i64) -> i128 {
+    w as i128 * v as i128
 }
 
 /// A fixed-point sum back in film units.
@@ -87,6 +105,9 @@ impl Layout {
 
 /// Widest filter footprint in pixels (radius ≤ 4).
 const MAX_FOOTPRINT: usize = 9;
+/// Further channels whose values are rounded once per sample (more are
+/// rounded per pixel: the same values, more slowly).
+const MAX_EXTRA: usize = 32;
 
 /// A rectangle of the film (a tile with a border of the filter's radius, or
 /// the whole crop window with one) that one worker adds samples and splats
@@ -147,28 +168,64 @@ impl Sink {
         for (j, w) in wy[..ny].iter_mut().enumerate() {
             *w = filter.eval((y0 + j as i32) as f32 + 0.5 - pos.y);
         }
-        let v = [rgb[0] as f64, rgb[1] as f64, rgb[2] as f64, 1.0];
-        let (stride, n_extra) = (self.stride, self.n_extra.min(extra.len()));
+        // Values rounded once per sample; weights once per pixel.
+        let v = [fixed_value(rgb[0]), fixed_value(rgb[1]), fixed_value(rgb[2]), 1 << VALUE_BITS];
+        let s = s123.map(|s| [0, 1, 2, 3, 4, 5, 6, 7, 8].map(|k| fixed_value(s[k / 3][k % 3])));
+        let stride = self.stride;
         for j in 0..ny {
             if wy[j] == 0.0 {
                 continue;
             }
             let row = ((y0 - self.y0) as usize + j) * self.width + (x0 - self.x0) as usize;
             for i in 0..nx {
-                let w = (wx[i] * wy[j]) as f64;
-                let px = &mut self.data[(row + i) * stride..(row + i + 1) * stride];
-                for k in 0..4 {
-                    px[k] += fixed(w * v[k]);
+                let w = fixed_weight(wx[i] * wy[j]);
+                if w == 0 {
+                    continue;
                 }
-                if let Some(s) = s123 {
-                    let st = &mut px[self.stokes_offset..self.stokes_offset + 9];
-                    for k in 0..9 {
-                        st[k] += fixed(w * s[k / 3][k % 3] as f64);
+                let px = &mut self.data[(row + i) * stride..(row + i + 1) * stride];
+                if let Some((c, _)) = px.split_first_chunk_mut::<4>() {
+                    for k in 0..4 {
+                        c[k] += term(w, v[k]);
                     }
                 }
-                if n_extra > 0 {
-                    for (d, &e) in px[self.extra_offset..self.extra_offset + n_extra].iter_mut().zip(extra) {
-                        *d += fixed(w * e as f64);
+                if let Some(s) = &s {
+                    for (d, &q) in px[self.stokes_offset..self.stokes_offset + 9].iter_mut().zip(s) {
+                        *d += term(w, q);
+                    }
+                }
+            }
+        }
+        let n_extra = self.n_extra.min(extra.len());
+        if n_extra > 0 {
+            self.add_extra(x0, y0, &wx[..nx], &wy[..ny], &extra[..n_extra]);
+        }
+    }
+
+    /// The further channels of a sample with the footprint (from pixel
+    /// (`x0`, `y0`)) and weights of [`Sink::add_sample`].
+    fn add_extra(&mut self, x0: i32, y0: i32, wx: &[f32], wy: &[f32], extra: &[f32]) {
+        let mut e = [0i64; MAX_EXTRA];
+        let quantized = extra.len() <= MAX_EXTRA;
+        for (q, &x) in e.iter_mut().zip(extra) {
+            *q = fixed_value(x);
+        }
+        let (stride, o) = (self.stride, self.extra_offset);
+        for (j, &wyj) in wy.iter().enumerate() {
+            let row = ((y0 - self.y0) as usize + j) * self.width + (x0 - self.x0) as usize;
+            for (i, &wxi) in wx.iter().enumerate() {
+                let w = fixed_weight(wxi * wyj);
+                if w == 0 {
+                    continue;
+                }
+                let at = (row + i) * stride + o;
+                let dst = &mut self.data[at..at + extra.len()];
+                if quantized {
+                    for (d, &q) in dst.iter_mut().zip(&e) {
+                        *d += term(w, q);
+                    }
+                } else {
+                    for (d, &x) in dst.iter_mut().zip(extra) {
+                        *d += term(w, fixed_value(x));
                     }
                 }
             }
@@ -197,6 +254,7 @@ impl Sink {
         if !(norm > 0.0) {
             return;
         }
+        let v = [fixed_value(value[0]), fixed_value(value[1]), fixed_value(value[2])];
         for j in 0..ny {
             let y = y0 + j as i32 - self.y0;
             if y < 0 || y >= self.height as i32 || wy[j] == 0.0 {
@@ -207,10 +265,10 @@ impl Sink {
                 if x < 0 || x >= self.width as i32 {
                     continue;
                 }
-                let w = (wx[i] * wy[j] / norm) as f64;
+                let w = fixed_weight(wx[i] * wy[j] / norm);
                 let at = (y as usize * self.width + x as usize) * self.stride + self.splat_offset;
-                for (k, d) in self.data[at..at + 3].iter_mut().enumerate() {
-                    *d = d.saturating_add(fixed(w * value[k] as f64));
+                for (d, &q) in self.data[at..at + 3].iter_mut().zip(&v) {
+                    *d = d.saturating_add(term(w, q));
                 }
             }
         }
@@ -558,15 +616,20 @@ mod tests {
     }
 
     #[test]
-    fn fixed_point_truncates_clamps_and_zeroes_nan() {
-        assert_eq!(fixed(1.0), 1i128 << 40);
-        assert_eq!(fixed(-0.5), -(1i128 << 39));
-        assert_eq!(fixed(f64::NAN), 0);
-        assert_eq!(fixed(1e30), MAX_TERM as i128);
-        assert_eq!(fixed(-1e300), -(MAX_TERM as i128));
-        assert_eq!(unfixed(fixed(1234.5)), 1234.5);
-        // Sums of the most samples a pixel can get stay far from overflow.
-        assert!((MAX_TERM as i128).checked_mul(81 << 32).is_some());
+    fn fixed_point_rounds_saturates_and_zeroes_nan() {
+        assert_eq!(fixed_value(1.0), 1i64 << 32);
+        assert_eq!(fixed_value(-0.5), -(1i64 << 31));
+        assert_eq!(fixed_value(f32::NAN), 0);
+        assert_eq!(fixed_value(1e30), i64::MAX);
+        assert_eq!(fixed_value(-1e30), i64::MIN);
+        // Rounded to nearest: no bias toward zero.
+        assert_eq!(fixed_value(3.0 / VALUE_SCALE as f32 * 0.75), 2);
+        assert_eq!(fixed_weight(1.0), 1 << 20);
+        assert_eq!(fixed_weight(2.0), 1 << 20);
+        assert_eq!(fixed_weight(-0.25), -(1 << 18));
+        assert_eq!(unfixed(term(fixed_weight(0.5), fixed_value(1234.5))), 617.25);
+        // Sums of the most terms a pixel can get stay far from overflow.
+        assert!(term(1 << 20, i64::MIN).abs().checked_mul(81 << 32).is_some());
     }
 
     #[test]
