@@ -294,7 +294,7 @@ fn bad_pass_and_checkpoint_flags_are_clear_errors() {
     let exr = dir.join("o.exr");
     let (code, err) = run(&["render", s(&scene), "--passes", "0", "-o", s(&exr)]);
     assert!(code == Some(1) && err.contains("--passes must be at least 1"), "{err}");
-    let (code, err) = run(&["render", s(&scene), "--write-every", "-1", "-o", s(&exr)]);
+    let (code, err) = run(&["render", s(&scene), "--write-every=-1", "-o", s(&exr)]);
     assert!(code == Some(1) && err.contains("--write-every"), "{err}");
     let (code, err) = run(&["render", s(&scene), "--write-every", "5", "-o", s(&dir.join("o.png"))]);
     assert!(code == Some(1) && err.contains("need an .exr output"), "{err}");

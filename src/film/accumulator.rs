@@ -29,8 +29,10 @@
 //! are `u32`), so camera sums stay below 2^83 · 81 · 2^32 < 2^122 and cannot
 //! overflow. Splats (light tracing: any number per path) and merges add with
 //! saturation instead. NaN values count as zero (the render loop zeroes and
-//! counts them before). Quantising per term costs an integer multiply-add
-//! per pixel and channel where a float sum costs a fused multiply-add.
+//! counts them before). In a [`Sink`], the colour and weight sums of
+//! samples below 1024 (in film units) go to `i64` sums first, which move into
+//! the `i128` ones whenever an addition would overflow — exact either way,
+//! and nearly as cheap as the float sums they replace.
 
 use super::{Channel, Filter, Image, Layer, PixelFormat};
 use crate::spectrum::Rgb;
@@ -122,8 +124,17 @@ pub struct Sink {
     stokes_offset: usize,
     extra_offset: usize,
     n_extra: usize,
+    /// The sums, in fixed point: the wide accumulators.
     data: Vec<i128>,
+    /// Colour and weight sums of camera samples in `i64` (cheaper to add
+    /// to); a sum that would overflow moves to `data` instead.
+    narrow: Vec<[i64; 4]>,
 }
+
+/// Samples whose largest fixed-point value (colour, and the weight's 1) is
+/// below this (1024 in film units) go to the narrow sums: a term then stays
+/// below 2^20 · 2^42 = 2^62.
+const NARROW_LIMIT: u64 = 1 << 42;
 
 impl Sink {
     /// A sink of `width` × `height` pixels whose top-left pixel is (`x0`,
@@ -141,6 +152,7 @@ impl Sink {
             extra_offset: layout.extra_offset(),
             n_extra: layout.extra.len(),
             data: vec![0; width * height * stride],
+            narrow: if layout.camera { vec![[0; 4]; width * height] } else { vec![] },
         }
     }
 
@@ -172,20 +184,45 @@ impl Sink {
         let v = [fixed_value(rgb[0]), fixed_value(rgb[1]), fixed_value(rgb[2]), 1 << VALUE_BITS];
         let s = s123.map(|s| [0, 1, 2, 3, 4, 5, 6, 7, 8].map(|k| fixed_value(s[k / 3][k % 3])));
         let stride = self.stride;
+        let peak = v.iter().map(|q| q.unsigned_abs()).max().unwrap_or(0);
+        // Every term of a sample below the limit fits an i64 (|w| ≤ 2^20).
+        let narrow = peak < NARROW_LIMIT && !self.narrow.is_empty();
         for j in 0..ny {
             if wy[j] == 0.0 {
                 continue;
             }
             let row = ((y0 - self.y0) as usize + j) * self.width + (x0 - self.x0) as usize;
+            if narrow {
+                let (sums, wide) = (&mut self.narrow, &mut self.data);
+                for (i, (n, &wxi)) in sums[row..row + nx].iter_mut().zip(&wx[..nx]).enumerate() {
+                    let w = fixed_weight(wxi * wy[j]);
+                    for k in 0..4 {
+                        let t = w * v[k];
+                        match n[k].checked_add(t) {
+                            Some(sum) => n[k] = sum,
+                            None => {
+                                // Rare: the narrow sum moves to the wide one.
+                                wide[(row + i) * stride + k] += n[k] as i128 + t as i128;
+                                n[k] = 0;
+                            }
+                        }
+                    }
+                }
+                if s.is_none() {
+                    continue;
+                }
+            }
             for i in 0..nx {
                 let w = fixed_weight(wx[i] * wy[j]);
                 if w == 0 {
                     continue;
                 }
                 let px = &mut self.data[(row + i) * stride..(row + i + 1) * stride];
-                if let Some((c, _)) = px.split_first_chunk_mut::<4>() {
-                    for k in 0..4 {
-                        c[k] += term(w, v[k]);
+                if !narrow {
+                    if let Some((c, _)) = px.split_first_chunk_mut::<4>() {
+                        for k in 0..4 {
+                            c[k] += term(w, v[k]);
+                        }
                     }
                 }
                 if let Some(s) = &s {
@@ -387,6 +424,14 @@ impl FilmState {
             let s0 = (sy * sink.width + (xs - sink.x0) as usize) * stride;
             for (d, s) in dst.iter_mut().zip(&sink.data[s0..]) {
                 *d = d.saturating_add(*s);
+            }
+            if !sink.narrow.is_empty() {
+                let n0 = sy * sink.width + (xs - sink.x0) as usize;
+                for (d, n) in dst.chunks_exact_mut(stride).zip(&sink.narrow[n0..]) {
+                    for k in 0..4 {
+                        d[k] += n[k] as i128;
+                    }
+                }
             }
         }
     }
@@ -637,8 +682,33 @@ mod tests {
         let layout = camera();
         let mut s = Sink::new(&layout, 0, 0, 4, 4);
         s.add_sample(&Filter::new(FilterKind::Box), Vec2::new(1.3, 2.9), Rgb::new(1.0, 2.0, 3.0), None, &[1.0]);
-        let nonzero: Vec<usize> = (0..16).filter(|&i| s.data[i * layout.stride() + 3] != 0).collect();
+        let mut h = header(layout.clone());
+        h.crop = [0, 0, 4, 4];
+        let mut state = FilmState::empty(h);
+        state.add_sink(&s);
+        let nonzero: Vec<usize> = (0..16).filter(|&i| state.data[i * layout.stride() + 3] != 0).collect();
         assert_eq!(nonzero, vec![2 * 4 + 1]);
+    }
+
+    #[test]
+    fn narrow_sums_spill_exactly_and_bright_samples_go_wide() {
+        let layout = Layout { camera: true, splats: false, stokes: false, extra: vec![] };
+        let mut state = FilmState::empty(header(layout.clone()));
+        let mut sink = Sink::new(&layout, 0, 0, 8, 8);
+        let filter = Filter::new(FilterKind::Box);
+        // 1000 is narrow, each term near 2^62: the i64 sums overflow often.
+        let values = [1000.0f32, 999.5, -1000.0, 1e6, 3.0e9, 1000.0, 0.25];
+        for _ in 0..10 {
+            for &v in &values {
+                sink.add_sample(&filter, Vec2::new(2.5, 3.5), Rgb::new(v, -v, 0.5), None, &[]);
+            }
+        }
+        state.add_sink(&sink);
+        let i = (3 * 8 + 2) * layout.stride();
+        let want = |v: f32| 10 * values.iter().map(|&x| term(1 << WEIGHT_BITS, fixed_value(x * v))).sum::<i128>();
+        assert_eq!(state.data[i], want(1.0));
+        assert_eq!(state.data[i + 1], want(-1.0));
+        assert_eq!(state.data[i + 3], 70 * term(1 << WEIGHT_BITS, 1 << VALUE_BITS));
     }
 
     #[test]
