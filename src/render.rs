@@ -237,6 +237,8 @@ pub fn render_progressive<S: Spectrum>(
 ) -> anyhow::Result<(Image, RenderStats, FilmState)> {
     let spp = scene.sampler.sample_count;
     let threads = thread_count(options);
+    // Before anything is allocated.
+    check_memory(scene, S::POLARIZED, options.passes > 1 || resume.is_some())?;
     let mut state = match resume {
         Some(s) => {
             let fresh = FilmState::empty(state_header::<S>(scene));
@@ -250,7 +252,6 @@ pub fn render_progressive<S: Spectrum>(
     };
     let done = state.prefix().unwrap_or(0);
     let schedule: Vec<u32> = pass_schedule(spp, options.passes).into_iter().filter(|&e| e > done).collect();
-    check_memory(scene, S::POLARIZED, schedule.len() > 1 || done > 0)?;
     let pixels = scene.film.crop[2] as u64 * scene.film.crop[3] as u64;
     let bar = progress_bar(options, pixels * (spp - done) as u64);
     let start = Instant::now();
