@@ -4,7 +4,7 @@
 
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use crate::film::output::{Format, write_image};
+use crate::film::output::{ExrMetadata, Format, write_image, write_image_with};
 use crate::{LoadOptions, RenderOptions};
 use std::collections::HashMap;
 use std::io::IsTerminal;
@@ -103,7 +103,29 @@ struct RenderArgs {
     /// DIR/pass-001.exr, pass-002.exr, … (the image the page is sent).
     #[arg(long, value_name = "DIR", requires = "preview")]
     preview_dump_passes: Option<PathBuf>,
+    /// Render in this many passes of doubling sample counts (each pass adds
+    /// new samples to the previous ones; the image is the same, bit for bit,
+    /// for any number of passes). Default: 5 (the first pass has 1/16 of the
+    /// samples), fewer when there are fewer samples per pixel.
+    #[arg(long, value_name = "N")]
+    passes: Option<u32>,
+    /// After a pass, write the outputs (a checkpoint: the .exr holds the
+    /// exact state to --resume from) if this many seconds have passed since
+    /// the last write; 0 writes after every pass.
+    #[arg(long, value_name = "SECONDS")]
+    write_every: Option<f64>,
+    /// Continue the render saved in this .exr (by --write-every or an
+    /// interruption) with the same scene and options; the result is the
+    /// image of an uninterrupted render, bit for bit. Writes to it unless -o
+    /// is given.
+    #[arg(long, value_name = "OUT.exr")]
+    resume: Option<PathBuf>,
 }
+
+/// Passes of a command-line render unless --passes says otherwise: the
+/// first pass holds 1/16 of the samples, so an interruption after it still
+/// writes an image with every pixel rendered (measured to cost nothing).
+const DEFAULT_PASSES: u32 = 5;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 enum Mode {
@@ -180,6 +202,9 @@ fn default_render() -> anyhow::Result<RenderArgs> {
         preview: None,
         preview_bind: None,
         preview_dump_passes: None,
+        passes: None,
+        write_every: None,
+        resume: None,
     })
 }
 
@@ -224,7 +249,9 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     if let Some(spp) = args.spp.filter(|&n| n > crate::scene::loader::MAX_SPP) {
         anyhow::bail!("--spp {spp} is above the limit of {} (2^24), the same as a scene's sample_count", crate::scene::loader::MAX_SPP);
     }
-    let outputs = if args.output.is_empty() {
+    let outputs = if let (true, Some(resume)) = (args.output.is_empty(), &args.resume) {
+        vec![resume.clone()]
+    } else if args.output.is_empty() {
         let stem = args.scene.file_stem().map_or("render".into(), |s| s.to_string_lossy().to_string());
         vec![PathBuf::from(format!("{stem}.exr"))]
     } else {
@@ -256,6 +283,16 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         }
     }
 
+    if args.passes == Some(0) {
+        anyhow::bail!("--passes must be at least 1");
+    }
+    if let Some(s) = args.write_every.filter(|s| !(s.is_finite() && *s >= 0.0)) {
+        anyhow::bail!("--write-every {s}: expected a number of seconds, 0 or more");
+    }
+    let checkpoints = args.write_every.is_some() || args.resume.is_some();
+    if checkpoints && !outputs.iter().any(|o| Format::from_path(o) == Some(Format::Exr)) {
+        anyhow::bail!("--write-every and --resume need an .exr output, which holds the state to resume from");
+    }
     let images: Vec<&PathBuf> = outputs.iter().chain(&args.stokes_view).collect();
     check_outputs(&images, args.stats.as_ref())?;
 
@@ -305,7 +342,34 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     if let Some(dir) = &args.preview_dump_passes {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create the folder {}", dir.display()))?;
     }
-    let passes = if preview.is_some() { crate::preview::default_passes(scene.sampler.sample_count) } else { 1 };
+    let checkpoint = Checkpoint::new(&args, &scene);
+    let resume = match &args.resume {
+        Some(path) => match checkpoint.read(path)? {
+            Some(state) => Some(state),
+            None => {
+                if !args.quiet {
+                    say!("{} already holds all {} samples per pixel of this render; nothing to do", path.display(), scene.sampler.sample_count);
+                }
+                return Ok(ExitCode::SUCCESS);
+            }
+        },
+        None => None,
+    };
+    let passes = args.passes.unwrap_or(if preview.is_some() { crate::preview::default_passes(scene.sampler.sample_count) } else { DEFAULT_PASSES });
+    let render_options = RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()), passes, ..RenderOptions::default() };
+    let write_all = |image: &crate::film::Image, state: Option<&crate::film::FilmState>| -> anyhow::Result<()> {
+        let meta = checkpoint.metadata(state);
+        for o in &outputs {
+            write_image_with(image, o, &meta)?;
+        }
+        if let Some(view) = &args.stokes_view {
+            let picture = crate::film::stokes::stokes_view(image).context("the render has no Stokes layers")?;
+            write_image(&picture, view)?;
+        }
+        Ok(())
+    };
+    let mut last_write = std::time::Instant::now();
+    let mut write_error = None;
     let mut on_pass = |report: &crate::PassReport| {
         // The file first: a page that shows a pass finds its EXR written.
         if let Some(dir) = &args.preview_dump_passes {
@@ -317,16 +381,23 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         if let Some(p) = &preview {
             p.publish(report);
         }
+        let Some(every) = args.write_every else { return };
+        if report.spp_done < report.spp_total && write_error.is_none() && last_write.elapsed().as_secs_f64() >= every {
+            if let Err(e) = write_all(report.image, Some(report.state)) {
+                // Stop: a render that cannot save its checkpoints should not go on for hours.
+                write_error = Some(e);
+                stop.store(true, Ordering::SeqCst);
+            }
+            last_write = std::time::Instant::now();
+        }
     };
-    let render_options = RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()), passes, ..RenderOptions::default() };
-    let (image, stats) = crate::session::render(&scene, args.mode.into(), &render_options, &mut on_pass)?;
-    for o in &outputs {
-        write_image(&image, o)?;
+    let (image, stats, state) = crate::session::render_from(&scene, args.mode.into(), &render_options, resume, &mut on_pass)?;
+    if let Some(e) = write_error {
+        return Err(e.context("writing a checkpoint"));
     }
-    if let Some(view) = &args.stokes_view {
-        let picture = crate::film::stokes::stokes_view(&image).context("the render has no Stokes layers")?;
-        write_image(&picture, view)?;
-    }
+    // An interrupted render keeps its state (when it has a complete pass) so
+    // that --resume can continue it.
+    write_all(&image, Some(&state))?;
     if let Some(path) = &args.stats {
         let mut json = serde_json::to_value(&stats)?;
         json["load_seconds"] = load_seconds.into();
@@ -336,6 +407,17 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(p) = &preview {
         p.finish(&stats);
+    }
+    if stats.interrupted && stats.spp_done > 0 {
+        let names: Vec<String> = outputs.iter().chain(&args.stokes_view).map(|o| o.display().to_string()).collect();
+        say!(
+            "interrupted: wrote the last complete pass ({} of {} spp, every pixel) → {}; continue it with --resume {}",
+            stats.spp_done,
+            stats.spp,
+            names.join(", "),
+            outputs.iter().find(|o| Format::from_path(o) == Some(Format::Exr)).map_or(String::new(), |o| o.display().to_string())
+        );
+        return Ok(ExitCode::from(130));
     }
     if stats.interrupted {
         let names: Vec<String> = outputs.iter().chain(&args.stokes_view).map(|o| o.display().to_string()).collect();
@@ -367,4 +449,93 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The EXR header attribute saying which render an output is of and which
+/// samples it holds: `samples=0-64; scene=…; mode=rgb; size=…; spp=64; seed=0`
+/// (`samples=partial` for an interrupted first pass).
+pub const RENDER_ATTRIBUTE: &str = "snell.render";
+
+/// The `name=value` fields of a [`RENDER_ATTRIBUTE`].
+pub fn parse_fields(text: &str) -> Vec<(String, String)> {
+    text.split(';').filter_map(|f| f.split_once('=')).map(|(k, v)| (k.trim().to_string(), v.trim().to_string())).collect()
+}
+
+/// What a checkpoint's EXR header says about the render it holds, to check
+/// that `--resume` continues the same render.
+struct Checkpoint {
+    /// name, value: the checked attributes, each compared on resume.
+    identity: Vec<(&'static str, String)>,
+    sample_count: u32,
+}
+
+impl Checkpoint {
+    fn new(args: &RenderArgs, scene: &crate::Scene) -> Checkpoint {
+        // The scene file's bytes and the -D definitions (assets it loads are
+        // not hashed: a changed mesh file is not detected).
+        let mut defines = args.define.clone();
+        defines.sort();
+        let text = std::fs::read(&args.scene).unwrap_or_default();
+        let digest = text.iter().chain(defines.join("\n").as_bytes()).fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
+        let [ox, oy, w, h] = scene.film.crop;
+        Checkpoint {
+            identity: vec![
+                ("scene", format!("{:016x}", crate::math::rng::mix64(digest))),
+                ("mode", crate::Mode::from(args.mode).name().to_string()),
+                ("size", format!("{}x{} crop {w}x{h}+{ox}+{oy}", scene.film.width, scene.film.height)),
+                ("spp", scene.sampler.sample_count.to_string()),
+                ("seed", scene.sampler.seed.to_string()),
+            ],
+            sample_count: scene.sampler.sample_count,
+        }
+    }
+
+    /// The header attributes of an output holding `state`: which samples it
+    /// holds, and the exact state itself when the render can be resumed (a
+    /// complete pass, not the last).
+    fn metadata(&self, state: Option<&crate::film::FilmState>) -> ExrMetadata {
+        let mut meta = ExrMetadata::default();
+        let samples = match state {
+            Some(s) if s.header.complete => s.ranges().iter().map(|r| format!("{}-{}", r.start, r.end)).collect::<Vec<_>>().join(","),
+            _ => "partial".to_string(),
+        };
+        // One attribute (EXR writers order attributes as they like; one
+        // keeps the file a function of the image).
+        let fields: Vec<String> = std::iter::once(format!("samples={samples}")).chain(self.identity.iter().map(|(k, v)| format!("{k}={v}"))).collect();
+        meta.text.push((RENDER_ATTRIBUTE.into(), fields.join("; ")));
+        if let Some(s) = state.filter(|s| s.header.complete && !s.is_finished()) {
+            meta.state = Some(s.to_bytes());
+        }
+        meta
+    }
+
+    /// The state to continue from in the checkpoint `path`, or `None` if it
+    /// already holds the whole render; an error if it is of another render
+    /// or holds no state.
+    fn read(&self, path: &Path) -> anyhow::Result<Option<crate::film::FilmState>> {
+        let meta = crate::film::output::read_exr_metadata(path).with_context(|| format!("--resume {}", path.display()))?;
+        let fields = meta.text.iter().find(|(n, _)| n == RENDER_ATTRIBUTE).map(|(_, v)| parse_fields(v)).unwrap_or_default();
+        let get = |k: &str| fields.iter().find(|(n, _)| n == k).map(|(_, v)| v.as_str());
+        if get("samples").is_none() {
+            anyhow::bail!("--resume {}: not a Snell checkpoint (its header has no {RENDER_ATTRIBUTE} attribute)", path.display());
+        }
+        for (name, value) in &self.identity {
+            let saved = get(name).unwrap_or("none");
+            if saved != value {
+                let what = name;
+                anyhow::bail!(
+                    "--resume {}: the checkpoint is of another render ({what} {saved}, this render's {what} is {value}); resume with the same scene, -D, --width, --spp, --seed and --mode",
+                    path.display()
+                );
+            }
+        }
+        if get("samples") == Some(&format!("0-{}", self.sample_count)) {
+            return Ok(None);
+        }
+        let bytes = meta.state.ok_or_else(|| {
+            anyhow::anyhow!("--resume {}: holds no resumable state (samples {}); render it again without --resume", path.display(), get("samples").unwrap_or("?"))
+        })?;
+        let state = crate::film::FilmState::from_bytes(&bytes).with_context(|| format!("--resume {}", path.display()))?;
+        Ok(Some(state))
+    }
 }

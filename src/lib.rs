@@ -23,6 +23,7 @@ pub mod session;
 pub mod spectrum;
 pub mod texture;
 
-pub use render::{PassReport, RenderOptions, RenderStats, render};
+pub use film::FilmState;
+pub use render::{PassReport, RenderOptions, RenderStats, render, render_samples};
 pub use session::Mode;
 pub use scene::{LoadOptions, Scene, SceneError, load_file, load_str};

@@ -1,8 +1,15 @@
-//! The render driver: splits the film into tiles, renders them on a pool of
-//! threads, merges them in a fixed order (so the image depends only on the
-//! scene and the seed, not on the thread count or timing) and reports progress.
+//! The render loop: one loop for every integrator. A render is a set of
+//! sample ranges of every pixel of the crop window; a range is rendered on a
+//! pool of threads into [`Sink`]s (tiles of camera samples, or whole-window
+//! splat buffers for light tracing) whose exact fixed-point sums add into a
+//! [`FilmState`] (see [`crate::film::accumulator`]). So the image depends
+//! only on the scene, the seed and the samples rendered — not on the thread
+//! count, the order of the work, the split of the samples into passes, or
+//! the machines that rendered them ([`render_samples`] + [`FilmState::merge`]).
+//! [`render_passes`] renders in progressive passes with a callback, and
+//! [`render_progressive`] also resumes from a saved state.
 
-use crate::film::{Film, Filter, Image, TileBuffer};
+use crate::film::{FilmState, Image, Layout, PixelFormat, Sink, StateHeader};
 use crate::integrator::{Integrator, ParticleTracer};
 use crate::spectrum::Rgb;
 use crate::sampler::Sampler;
@@ -13,6 +20,7 @@ use glam::{Vec2, Vec3};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use serde::Serialize;
+use std::ops::Range;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
@@ -26,8 +34,9 @@ pub struct RenderOptions {
     /// Show a progress bar on stderr (only drawn when stderr is a terminal).
     pub progress: bool,
     /// Set (e.g. by a Ctrl-C / SIGTERM handler) to stop early: work units
-    /// (tile rows; batches of light paths) not yet started are skipped, and
-    /// the image develops from the samples taken ([`RenderStats::interrupted`]).
+    /// (tile rows; rows of light paths) not yet started are skipped, the
+    /// pass under way is abandoned and the image is that of the last
+    /// complete pass, or the partial first pass ([`RenderStats::interrupted`]).
     pub stop: Option<Arc<AtomicBool>>,
     /// Render in this many passes of growing sample counts (0 or 1: one
     /// pass), calling the `on_pass` callback of [`render_passes`] after each.
@@ -46,28 +55,35 @@ impl RenderOptions {
     }
 }
 
-/// Bytes the render of `scene` holds at its peak (tile buffers with their
-/// filter borders, the film's f64 sums, the developed image and an encoded
-/// copy for output), `polarized` adding the Stokes layers.
+/// Bytes the render of `scene` holds at its peak: the workers' sinks (tiles
+/// with their filter borders, or whole-window splat buffers for light
+/// tracing), the film's fixed-point sums (twice when rendering in passes:
+/// the passes so far and the pass under way), the developed image and an
+/// encoded copy for output; `polarized` adds the Stokes sums and layers.
 pub fn estimate_memory(scene: &Scene, polarized: bool) -> u64 {
-    let (w, h) = (scene.film.width as u64, scene.film.height as u64);
+    estimate(scene, polarized, true)
+}
+
+fn estimate(scene: &Scene, polarized: bool, passes: bool) -> u64 {
+    let (w, h) = (scene.film.crop[2] as u64, scene.film.crop[3] as u64);
     let pixels = w * h;
     let border = (scene.film.filter.radius() + 0.5).ceil() as u64;
+    let threads = rayon::current_num_threads() as u64;
+    let copies = if passes { 2 } else { 1 };
     if let Integrator::Particle(_) = &scene.integrator {
-        let threads = rayon::current_num_threads() as u64;
-        return pixels * (24 + 12 + 12) + threads * (w + 2 * border) * (h + 2 * border) * 12;
+        return copies * pixels * 3 * 16 + pixels * (12 + 12) + threads * (w + 2 * border) * (h + 2 * border) * 3 * 16;
     }
-    let tiles_x = w.div_ceil(TILE as u64);
-    let tiles_y = h.div_ceil(TILE as u64);
-    let tile_pixels = tiles_x * tiles_y * (TILE as u64 + 2 * border).pow(2);
-    let (tile, film, image) = if polarized { (16 + 36, 32 + 72, 12 * 4) } else { (16, 32, 12) };
-    tile_pixels * tile + pixels * (film + image + image)
+    let extra = scene.integrator.channel_names().len() as u64 + 1;
+    let stride = 4 + extra + if polarized { 9 } else { 0 };
+    let tile = threads * (TILE as u64 + 2 * border).pow(2) * stride * 16;
+    let image = if polarized { 12 * 4 } else { 12 } + 4 * extra;
+    tile + pixels * (copies * stride * 16 + 2 * image)
 }
 
 /// Refuses a film whose estimated memory is above the budget
 /// ([`crate::limits::max_film_bytes`]), before anything is allocated.
-fn check_memory(scene: &Scene, polarized: bool) -> anyhow::Result<()> {
-    let need = estimate_memory(scene, polarized);
+fn check_memory(scene: &Scene, polarized: bool, passes: bool) -> anyhow::Result<()> {
+    let need = estimate(scene, polarized, passes);
     let max = crate::limits::max_film_bytes();
     if need > max {
         let mb = |b: u64| b.div_ceil(1 << 20);
@@ -109,23 +125,31 @@ pub struct RenderStats {
     /// number a full render takes.
     pub samples_taken: u64,
     pub samples_planned: u64,
+    /// Samples per pixel in the image when every pixel has the same (the
+    /// last complete pass; the full count for a finished render), 0 when the
+    /// image is a partial first pass.
+    pub spp_done: u32,
 }
 
 impl RenderStats {
-    /// `samples` (camera samples, or light paths) rendered in `seconds`.
-    fn new(scene: &Scene, spp: u32, threads: usize, seconds: f64, samples: f64, invalid_samples: u64) -> RenderStats {
+    /// A render of `scene` at `spp` samples per pixel that took `rendered`
+    /// samples (camera samples, or light paths) in `seconds`, its image being
+    /// that of `result`.
+    fn new(scene: &Scene, spp: u32, threads: usize, seconds: f64, rendered: u64, result: &FilmState) -> RenderStats {
         let planned = scene.film.crop[2] as u64 * scene.film.crop[3] as u64 * spp as u64;
+        let taken = result.header.samples_taken;
         RenderStats {
-            interrupted: (samples as u64) < planned,
-            samples_taken: samples as u64,
+            interrupted: taken < planned,
+            samples_taken: taken,
             samples_planned: planned,
+            spp_done: if result.header.complete { result.spp() } else { 0 },
             width: scene.film.crop[2],
             height: scene.film.crop[3],
             spp,
             threads,
             render_seconds: seconds,
-            samples_per_second: if seconds > 0.0 { samples / seconds } else { 0.0 },
-            invalid_samples,
+            samples_per_second: if seconds > 0.0 { rendered as f64 / seconds } else { 0.0 },
+            invalid_samples: result.header.invalid_samples,
         }
     }
 }
@@ -160,6 +184,9 @@ pub struct PassReport<'a> {
     /// Seconds since the first pass began.
     pub elapsed_seconds: f64,
     pub image: &'a Image,
+    /// The exact sums behind `image` (samples `[0, spp_done)`): what a
+    /// checkpoint saves ([`FilmState::to_bytes`]).
+    pub state: &'a FilmState,
 }
 
 /// The cumulative samples per pixel after each of `passes` passes of an
@@ -182,46 +209,188 @@ pub fn render<S: Spectrum>(scene: &Scene, options: &RenderOptions) -> anyhow::Re
     render_passes::<S>(scene, options, &mut |_| {})
 }
 
-/// Renders in [`RenderOptions::passes`] passes (see [`pass_schedule`]),
-/// calling `on_pass` with the image so far after each; a stop request ends
-/// the render after the pass under way.
+/// Renders in [`RenderOptions::passes`] passes (see [`pass_schedule`]):
+/// pass k renders only the samples `[end_{k−1}, end_k)` of every pixel and
+/// adds them, exactly, to the previous passes'. `on_pass` gets the image so
+/// far after each pass. A stop request ([`RenderOptions::stop`]) abandons
+/// the pass under way and returns the last complete pass (every pixel with
+/// the same samples), or, if none completed, what the first pass rendered.
 pub fn render_passes<S: Spectrum>(
     scene: &Scene,
     options: &RenderOptions,
     on_pass: &mut dyn FnMut(&PassReport),
 ) -> anyhow::Result<(Image, RenderStats)> {
-    let schedule = pass_schedule(scene.sampler.sample_count, options.passes);
+    let (image, stats, _) = render_progressive::<S>(scene, options, None, on_pass)?;
+    Ok((image, stats))
+}
+
+/// [`render_passes`], continuing from `resume` (a state of this scene and
+/// mode holding samples `[0, k)`, e.g. from a checkpoint) if given, and also
+/// returning the final [`FilmState`] (for checkpoints and merging). The
+/// passes are those of [`pass_schedule`] that end after `k`; the result is
+/// bit-identical to an uninterrupted render.
+pub fn render_progressive<S: Spectrum>(
+    scene: &Scene,
+    options: &RenderOptions,
+    resume: Option<FilmState>,
+    on_pass: &mut dyn FnMut(&PassReport),
+) -> anyhow::Result<(Image, RenderStats, FilmState)> {
+    let spp = scene.sampler.sample_count;
+    let threads = thread_count(options);
+    // Before anything is allocated.
+    check_memory(scene, S::POLARIZED, options.passes > 1 || resume.is_some())?;
+    let mut state = match resume {
+        Some(s) => {
+            let fresh = FilmState::empty(state_header::<S>(scene));
+            fresh.check_compatible(&s).map_err(|e| anyhow::anyhow!("cannot resume: {}", e.to_string().trim_start_matches("cannot merge film states: ")))?;
+            if s.prefix().is_none() || !s.header.complete {
+                anyhow::bail!("cannot resume: the saved state does not hold a complete prefix [0, k) of the samples");
+            }
+            s
+        }
+        None => FilmState::empty(state_header::<S>(scene)),
+    };
+    let done = state.prefix().unwrap_or(0);
+    let schedule: Vec<u32> = pass_schedule(spp, options.passes).into_iter().filter(|&e| e > done).collect();
+    let pixels = scene.film.crop[2] as u64 * scene.film.crop[3] as u64;
+    let bar = progress_bar(options, pixels * (spp - done) as u64);
     let start = Instant::now();
-    let mut last = None;
-    for (k, &spp) in schedule.iter().enumerate() {
-        // Placeholder until the render loop takes sample ranges: a pass
-        // re-renders samples [0, spp) (addressable samples: the same image).
-        let (image, stats) = if let Integrator::Particle(tracer) = &scene.integrator {
-            render_particles::<S>(scene, tracer, options, spp)?
+    let mut rendered = 0u64;
+    let mut partial = None;
+    let mut begin = done;
+    for (k, &end) in schedule.iter().enumerate() {
+        let pass = render_range::<S>(scene, options, threads, begin..end, &bar)?;
+        rendered += pass.header.samples_taken;
+        if !pass.header.complete {
+            // Abandoned: keep the complete passes, or this one if there is none.
+            if state.header.samples_taken == 0 {
+                partial = Some(pass);
+            }
+            break;
+        }
+        if state.header.samples_taken == 0 && state.ranges().is_empty() {
+            state = pass;
         } else {
-            render_camera::<S>(scene, options, spp)?
-        };
+            state.merge(&pass)?;
+        }
+        begin = end;
+        let image = state.develop();
         on_pass(&PassReport {
             pass: k as u32 + 1,
             passes: schedule.len() as u32,
-            spp_done: spp,
-            spp_total: scene.sampler.sample_count,
+            spp_done: end,
+            spp_total: spp,
             elapsed_seconds: start.elapsed().as_secs_f64(),
             image: &image,
+            state: &state,
         });
-        let stop = stats.interrupted || options.stopped();
-        last = Some((image, stats));
-        if stop {
+        if options.stopped() {
             break;
         }
     }
-    last.ok_or_else(|| anyhow::anyhow!("no pass was rendered"))
+    let seconds = start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    let result = partial.unwrap_or(state);
+    let stats = RenderStats::new(scene, spp, threads, seconds, rendered, &result);
+    Ok((result.develop(), stats, result))
 }
 
-fn render_camera<S: Spectrum>(scene: &Scene, options: &RenderOptions, spp: u32) -> anyhow::Result<(Image, RenderStats)> {
-    check_memory(scene, S::POLARIZED)?;
-    let threads = thread_count(options);
+/// Renders samples `samples` (a range of sample indices) of every pixel of
+/// the crop window and returns their accumulated sums. The states of
+/// disjoint ranges [`FilmState::merge`] exactly into the state of their
+/// union: rendering `[0, k)` here and `[k, n)` on another machine and
+/// merging gives, bit for bit, the image of `[0, n)`. A stop request makes
+/// the state incomplete (`header.complete == false`).
+pub fn render_samples<S: Spectrum>(scene: &Scene, options: &RenderOptions, samples: Range<u32>) -> anyhow::Result<FilmState> {
+    if samples.start > samples.end || samples.end > scene.sampler.sample_count {
+        anyhow::bail!(
+            "sample range {}..{} is outside the render's {} samples per pixel",
+            samples.start,
+            samples.end,
+            scene.sampler.sample_count
+        );
+    }
+    check_memory(scene, S::POLARIZED, false)?;
+    let pixels = scene.film.crop[2] as u64 * scene.film.crop[3] as u64;
+    let bar = progress_bar(options, pixels * samples.len() as u64);
+    let state = render_range::<S>(scene, options, thread_count(options), samples, &bar)?;
+    bar.finish_and_clear();
+    Ok(state)
+}
+
+/// A digest of what the image depends on besides the sample range: the
+/// film, sampler, camera, integrator, the scene's contents (counts of
+/// shapes, BSDFs, emitters) and the mode `S`.
+pub fn scene_fingerprint<S: Spectrum>(scene: &Scene) -> u64 {
+    let text = format!(
+        "{:?}|{:?}|{:?}|{:?}|{}|{}|{}|{}",
+        scene.film, scene.sampler, scene.camera, scene.integrator,
+        scene.shapes.len(), scene.bsdfs.len(), scene.emitters.len(),
+        std::any::type_name::<S>()
+    );
+    // FNV-1a, then mixed: stable across runs and machines.
+    let h = text.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
+    crate::math::rng::mix64(h)
+}
+
+/// The header of an empty state of `scene` rendered in mode `S`.
+fn state_header<S: Spectrum>(scene: &Scene) -> StateHeader {
+    let particle = matches!(scene.integrator, Integrator::Particle(_));
+    let alpha = scene.film.pixel_format.has_alpha();
+    let extra = if particle { vec![] } else { alpha.then(|| "A".to_string()).into_iter().chain(scene.integrator.channel_names()).collect() };
+    let format = scene.film.pixel_format;
+    let format_name = PixelFormat::NAMES
+        .iter()
+        .find(|n| PixelFormat::from_name(n) == Some(format))
+        .map_or("rgb".to_string(), |n| n.to_string());
+    StateHeader {
+        film_size: [scene.film.width, scene.film.height],
+        crop: scene.film.crop,
+        seed: scene.sampler.seed,
+        sample_count: scene.sampler.sample_count,
+        fingerprint: scene_fingerprint::<S>(scene),
+        pixel_format: format_name,
+        layout: Layout { camera: !particle, splats: particle, stokes: S::POLARIZED && !particle, extra },
+        ranges: vec![],
+        complete: true,
+        samples_taken: 0,
+        invalid_samples: 0,
+    }
+}
+
+/// One pass: samples `samples` of every pixel, by whichever loop the
+/// integrator needs.
+fn render_range<S: Spectrum>(scene: &Scene, options: &RenderOptions, threads: usize, samples: Range<u32>, bar: &ProgressBar) -> anyhow::Result<FilmState> {
     let pool = thread_pool(threads)?;
+    let mut state = FilmState::empty(state_header::<S>(scene));
+    if samples.is_empty() {
+        return Ok(state);
+    }
+    let (taken, invalid) = if let Integrator::Particle(tracer) = &scene.integrator {
+        render_particles::<S>(scene, tracer, options, &pool, &samples, &mut state, bar)
+    } else {
+        render_camera::<S>(scene, options, &pool, &samples, &mut state, bar)
+    };
+    let planned = scene.film.crop[2] as u64 * scene.film.crop[3] as u64 * samples.len() as u64;
+    state.header.samples_taken = taken;
+    state.header.invalid_samples = invalid;
+    state.header.complete = taken == planned;
+    state.add_range(samples);
+    Ok(state)
+}
+
+/// Camera paths: tiles of the crop window rendered in parallel, each into
+/// its own [`Sink`] that is then added to the state (exact integer sums, so
+/// the order tiles finish in does not matter). Returns the samples taken
+/// and the invalid ones.
+fn render_camera<S: Spectrum>(
+    scene: &Scene,
+    options: &RenderOptions,
+    pool: &rayon::ThreadPool,
+    samples: &Range<u32>,
+    state: &mut FilmState,
+    bar: &ProgressBar,
+) -> (u64, u64) {
     // The crop window (the whole film unless the scene crops): pixels are
     // numbered within it, the camera sees the full film.
     let [ox, oy, w, h] = scene.film.crop;
@@ -231,8 +400,8 @@ fn render_camera<S: Spectrum>(scene: &Scene, options: &RenderOptions, spp: u32) 
     // Further per-sample channels: alpha if the film has it, then the
     // integrator's (AOVs, moments). None for a plain RGB render.
     let alpha = scene.film.pixel_format.has_alpha();
-    let channel_names: Vec<String> = alpha.then(|| "A".to_string()).into_iter().chain(scene.integrator.channel_names()).collect();
-    let n_extra = channel_names.len();
+    let layout = state.header.layout.clone();
+    let n_extra = layout.extra.len();
 
     let mut tiles = vec![];
     for ty in (0..h).step_by(TILE as usize) {
@@ -240,94 +409,126 @@ fn render_camera<S: Spectrum>(scene: &Scene, options: &RenderOptions, spp: u32) 
             tiles.push((tx, ty, TILE.min(w - tx), TILE.min(h - ty)));
         }
     }
-    let bar = progress_bar(options, tiles.len() as u64);
     let invalid = AtomicU64::new(0);
     let inv_size = Vec2::new(1.0 / scene.film.width as f32, 1.0 / scene.film.height as f32);
     let offset = Vec2::new(ox as f32, oy as f32);
+    let shared = std::sync::Mutex::new(state);
 
-    let start = Instant::now();
-    let buffers: Vec<TileBuffer> = pool.install(|| {
-        tiles
-            .par_iter()
-            .map(|&(tx, ty, tw, th)| {
-                let mut buf = TileBuffer::new(
-                    tx as i32 - border,
-                    ty as i32 - border,
-                    (tw as i32 + 2 * border) as usize,
-                    (th as i32 + 2 * border) as usize,
-                );
-                if S::POLARIZED {
-                    buf = buf.with_stokes();
+    pool.install(|| {
+        tiles.par_iter().for_each(|&(tx, ty, tw, th)| {
+            let mut sink = Sink::new(&layout, tx as i32 - border, ty as i32 - border, (tw as i32 + 2 * border) as usize, (th as i32 + 2 * border) as usize);
+            let mut extra = vec![0.0f32; n_extra];
+            let mut bad = 0u64;
+            for y in ty..ty + th {
+                // A tile row is the unit of work that a stop request lets finish.
+                if options.stopped() {
+                    break;
                 }
-                if n_extra > 0 {
-                    buf = buf.with_extra(n_extra);
-                }
-                let mut extra = vec![0.0f32; n_extra];
-                let mut bad = 0u64;
-                for y in ty..ty + th {
-                    // A tile row is the unit of work that a stop request lets finish.
-                    if options.stopped() {
-                        break;
-                    }
-                    taken.fetch_add(tw as u64 * spp as u64, Ordering::Relaxed);
-                    for x in tx..tx + tw {
-                        // Seeded by the pixel's place in the full film: a crop
-                        // renders the same samples as the full render there.
-                        for index in 0..spp {
-                            let mut sampler = Sampler::start(&scene.sampler, x + ox, y + oy, index);
-                            let mut wl = S::sample_wavelengths(sampler.next_1d());
-                            let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                            let ray = scene.camera.sample_ray((pos + offset) * inv_size, &mut sampler);
-                            let l: S = if n_extra == 0 {
-                                scene.integrator.li(scene, ray, &mut sampler, &mut wl)
-                            } else {
-                                let first = alpha as usize;
-                                let (l, a) = scene.integrator.sample(scene, ray, &mut sampler, &mut wl, &mut extra[first..]);
-                                if alpha {
-                                    extra[0] = a;
-                                }
-                                if !extra.iter().all(|v| v.is_finite()) {
-                                    extra.fill(0.0);
-                                }
-                                buf.splat_extra(&scene.film.filter, (pos.x, pos.y), &extra);
-                                l
-                            };
-                            let mut rgb = l.to_rgb(&wl);
-                            // S1–S3 only in the polarized modes (a constant: no cost otherwise).
-                            let mut s123 = if S::POLARIZED { camera_stokes(&l, ray.d, up, &wl) } else { [Rgb::BLACK; 3] };
-                            if !rgb.is_finite() || !s123.iter().all(Rgb::is_finite) {
-                                bad += 1;
-                                (rgb, s123) = (Rgb::BLACK, [Rgb::BLACK; 3]);
+                taken.fetch_add(tw as u64 * samples.len() as u64, Ordering::Relaxed);
+                for x in tx..tx + tw {
+                    // Seeded by the pixel's place in the full film: a crop
+                    // renders the same samples as the full render there.
+                    for index in samples.clone() {
+                        let mut sampler = Sampler::start(&scene.sampler, x + ox, y + oy, index);
+                        let mut wl = S::sample_wavelengths(sampler.next_1d());
+                        let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                        let ray = scene.camera.sample_ray((pos + offset) * inv_size, &mut sampler);
+                        let l: S = if n_extra == 0 {
+                            scene.integrator.li(scene, ray, &mut sampler, &mut wl)
+                        } else {
+                            let first = alpha as usize;
+                            let (l, a) = scene.integrator.sample(scene, ray, &mut sampler, &mut wl, &mut extra[first..]);
+                            if alpha {
+                                extra[0] = a;
                             }
-                            if S::POLARIZED {
-                                buf.splat_stokes(&scene.film.filter, (pos.x, pos.y), rgb, s123);
-                            } else {
-                                buf.splat(&scene.film.filter, (pos.x, pos.y), rgb);
+                            if !extra.iter().all(|v| v.is_finite()) {
+                                extra.fill(0.0);
                             }
+                            l
+                        };
+                        let mut rgb = l.to_rgb(&wl);
+                        // S1–S3 only in the polarized modes (a constant: no cost otherwise).
+                        let mut s123 = if S::POLARIZED { camera_stokes(&l, ray.d, up, &wl) } else { [Rgb::BLACK; 3] };
+                        if !rgb.is_finite() || !s123.iter().all(Rgb::is_finite) {
+                            bad += 1;
+                            (rgb, s123) = (Rgb::BLACK, [Rgb::BLACK; 3]);
                         }
+                        sink.add_sample(&scene.film.filter, pos, rgb, S::POLARIZED.then_some(&s123), &extra);
                     }
                 }
-                if bad > 0 {
-                    invalid.fetch_add(bad, Ordering::Relaxed);
-                }
-                bar.inc(1);
-                buf
-            })
-            .collect()
+                bar.inc(tw as u64 * samples.len() as u64);
+            }
+            if bad > 0 {
+                invalid.fetch_add(bad, Ordering::Relaxed);
+            }
+            // Integer sums: the order in which tiles are added does not matter.
+            if let Ok(mut state) = shared.lock() {
+                state.add_sink(&sink);
+            }
+        })
     });
-    let seconds = start.elapsed().as_secs_f64();
-    bar.finish_and_clear();
+    (taken.into_inner(), invalid.into_inner())
+}
 
-    let mut film = Film::new(w, h).with_channels(scene.film.pixel_format, channel_names);
-    if S::POLARIZED {
-        film = film.with_stokes();
+/// Particle tracing: one light path per (pixel, sample index) of the crop
+/// window — `width · height · spp` paths in all — each splatting its
+/// camera connections through the reconstruction filter into a worker's
+/// [`Sink`] over the whole window; the image divides the splat sums by the
+/// number of paths. Rows of pixels are the units of work.
+fn render_particles<S: Spectrum>(
+    scene: &Scene,
+    tracer: &ParticleTracer,
+    options: &RenderOptions,
+    pool: &rayon::ThreadPool,
+    samples: &Range<u32>,
+    state: &mut FilmState,
+    bar: &ProgressBar,
+) -> (u64, u64) {
+    // Paths land anywhere on the full film; only the crop window is kept.
+    let [ox, oy, w, h] = scene.film.crop;
+    let offset = Vec2::new(ox as f32, oy as f32);
+    let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
+    let layout = state.header.layout.clone();
+    let next_row = AtomicU64::new(0);
+    let taken = AtomicU64::new(0);
+    let invalid = AtomicU64::new(0);
+    // Light paths get their own random numbers, apart from camera samples.
+    let light = crate::sampler::SamplerSpec { seed: scene.sampler.seed ^ 0x7061_7274_6963_6c65, ..scene.sampler };
+    let sinks: Vec<Sink> = pool.broadcast(|_| {
+        let mut sink = Sink::new(&layout, -border, -border, (w as i32 + 2 * border) as usize, (h as i32 + 2 * border) as usize);
+        let mut bad = 0u64;
+        loop {
+            let y = next_row.fetch_add(1, Ordering::Relaxed);
+            // A row of pixels is the unit of work that a stop request lets finish.
+            if y >= h as u64 || options.stopped() {
+                break;
+            }
+            let y = y as u32;
+            taken.fetch_add(w as u64 * samples.len() as u64, Ordering::Relaxed);
+            for x in 0..w {
+                for index in samples.clone() {
+                    let mut sampler = Sampler::start(&light, x + ox, y + oy, index);
+                    let mut wl = S::sample_wavelengths(sampler.next_1d());
+                    tracer.trace::<S>(scene, &mut sampler, &mut wl, &mut |pos, rgb| {
+                        if rgb.is_finite() {
+                            sink.splat(&scene.film.filter, pos - offset, rgb);
+                        } else {
+                            bad += 1;
+                        }
+                    });
+                }
+            }
+            bar.inc(w as u64 * samples.len() as u64);
+        }
+        if bad > 0 {
+            invalid.fetch_add(bad, Ordering::Relaxed);
+        }
+        sink
+    });
+    for sink in &sinks {
+        state.add_sink(sink);
     }
-    for b in &buffers {
-        film.merge(b);
-    }
-    let samples = taken.into_inner() as f64;
-    let stats = RenderStats::new(scene, spp, threads, seconds, samples, invalid.into_inner());
-    Ok((film.develop(), stats))
+    (taken.into_inner(), invalid.into_inner())
 }
 
 /// S1, S2, S3 (as film RGB) of the light a camera ray along `d` brings back,
@@ -346,140 +547,6 @@ fn camera_stokes<S: Spectrum>(l: &S, d: Vec3, up: Vec3, wl: &S::Wavelengths) -> 
     let s1r = s1 * r.y_axis.y + s2 * r.z_axis.y;
     let s2r = s1 * r.y_axis.z + s2 * r.z_axis.z;
     [s1r.to_rgb(wl), s2r.to_rgb(wl), s3.to_rgb(wl)]
-}
-
-/// Light paths are split into this many batches whatever the thread count,
-/// and the batches' images summed in order: the image depends on the seed only.
-const PARTICLE_CHUNKS: u64 = 256;
-
-/// Particle tracing: `width · height · spp` light paths, each splatting its
-/// camera connections through the reconstruction filter (weights normalised
-/// per splat, so a splat deposits exactly its value), divided by the number
-/// of paths.
-fn render_particles<S: Spectrum>(scene: &Scene, tracer: &ParticleTracer, options: &RenderOptions, spp: u32) -> anyhow::Result<(Image, RenderStats)> {
-    check_memory(scene, S::POLARIZED)?;
-    let threads = thread_count(options);
-    let pool = thread_pool(threads)?;
-    // Paths land anywhere on the full film; only the crop window is kept.
-    let [ox, oy, w, h] = scene.film.crop;
-    let offset = Vec2::new(ox as f32, oy as f32);
-    let mut traced = 0u64;
-    let total = w as u64 * h as u64 * spp as u64;
-    let chunks = PARTICLE_CHUNKS.min(total.max(1));
-    let border = (scene.film.filter.radius() + 0.5).ceil() as usize;
-    let (bw, bh) = (w as usize + 2 * border, h as usize + 2 * border);
-    let bar = progress_bar(options, chunks);
-    let invalid = AtomicU64::new(0);
-    let mut sums = vec![[0.0f64; 3]; w as usize * h as usize];
-
-    let start = Instant::now();
-    let chunk_ids: Vec<u64> = (0..chunks).collect();
-    for batch in chunk_ids.chunks(threads.max(1)) {
-        // A batch of chunks is the unit of work that a stop request lets finish.
-        if options.stopped() {
-            break;
-        }
-        traced += batch.iter().map(|&c| total * (c + 1) / chunks - total * c / chunks).sum::<u64>();
-        let images: Vec<Vec<[f32; 3]>> = pool.install(|| {
-            batch
-                .par_iter()
-                .map(|&c| {
-                    let mut buf = vec![[0.0f32; 3]; bw * bh];
-                    let mut bad = 0u64;
-                    let (first, last) = (total * c / chunks, total * (c + 1) / chunks);
-                    for i in first..last {
-                        // Light path i is addressed as a sample of a pixel of its own numbering.
-                        let light = crate::sampler::SamplerSpec { seed: scene.sampler.seed ^ 0x7061_7274_6963_6c65, ..scene.sampler };
-                        let mut sampler = Sampler::start(&light, i as u32, (i >> 32) as u32 | 0x8000_0000, 0);
-                        let mut wl = S::sample_wavelengths(sampler.next_1d());
-                        tracer.trace::<S>(scene, &mut sampler, &mut wl, &mut |pos, rgb| {
-                            if rgb.is_finite() {
-                                splat_normalized(&mut buf, bw, border, &scene.film.filter, pos - offset, rgb);
-                            } else {
-                                bad += 1;
-                            }
-                        });
-                    }
-                    if bad > 0 {
-                        invalid.fetch_add(bad, Ordering::Relaxed);
-                    }
-                    bar.inc(1);
-                    buf
-                })
-                .collect()
-        });
-        for image in &images {
-            for y in 0..h as usize {
-                let row = &image[(y + border) * bw + border..(y + border) * bw + border + w as usize];
-                for (dst, src) in sums[y * w as usize..(y + 1) * w as usize].iter_mut().zip(row) {
-                    for k in 0..3 {
-                        dst[k] += src[k] as f64;
-                    }
-                }
-            }
-        }
-    }
-    let seconds = start.elapsed().as_secs_f64();
-    bar.finish_and_clear();
-    // Divided by the paths actually traced (all of them unless stopped early).
-    let scale = 1.0 / traced.max(1) as f64;
-    let pixels = sums
-        .iter()
-        .map(|s| {
-            let v = Rgb::new((s[0] * scale) as f32, (s[1] * scale) as f32, (s[2] * scale) as f32);
-            if v.is_finite() { v } else { Rgb::BLACK }
-        })
-        .collect();
-    let stats = RenderStats::new(scene, spp, threads, seconds, traced as f64, invalid.into_inner());
-    let mut image = Image::new(w, h, pixels);
-    image.pixel_format = scene.film.pixel_format;
-    if scene.film.pixel_format.has_alpha() {
-        // Light paths have no camera ray to cover a pixel: opaque everywhere.
-        image.channels.push(crate::film::Channel { name: "A".into(), values: vec![1.0; (w * h) as usize] });
-    }
-    Ok((image, stats))
-}
-
-/// Adds `value` at film position `pos` (pixels) to a full-film buffer with a
-/// `border`-pixel margin, spread over the filter's footprint with weights
-/// that sum to one.
-fn splat_normalized(buf: &mut [[f32; 3]], stride: usize, border: usize, filter: &Filter, pos: Vec2, value: Rgb) {
-    const MAX: usize = 9;
-    let r = filter.radius();
-    let x0 = (pos.x - 0.5 - r).ceil() as i32;
-    let y0 = (pos.y - 0.5 - r).ceil() as i32;
-    let nx = (((pos.x - 0.5 + r).floor() as i32 - x0 + 1).max(0) as usize).min(MAX);
-    let ny = (((pos.y - 0.5 + r).floor() as i32 - y0 + 1).max(0) as usize).min(MAX);
-    let (mut wx, mut wy) = ([0.0f32; MAX], [0.0f32; MAX]);
-    for i in 0..nx {
-        wx[i] = filter.eval((x0 + i as i32) as f32 + 0.5 - pos.x);
-    }
-    for j in 0..ny {
-        wy[j] = filter.eval((y0 + j as i32) as f32 + 0.5 - pos.y);
-    }
-    let norm = wx[..nx].iter().sum::<f32>() * wy[..ny].iter().sum::<f32>();
-    if !(norm > 0.0) {
-        return;
-    }
-    let b = border as i32;
-    let height = (buf.len() / stride) as i32;
-    for j in 0..ny {
-        let y = y0 + j as i32 + b;
-        if y < 0 || y >= height || wy[j] == 0.0 {
-            continue;
-        }
-        for i in 0..nx {
-            let x = x0 + i as i32 + b;
-            if x < 0 || x >= stride as i32 {
-                continue;
-            }
-            let wgt = wx[i] * wy[j] / norm;
-            let px = &mut buf[y as usize * stride + x as usize];
-            for k in 0..3 {
-                px[k] += value.0[k] * wgt;
-            }
-        }
-    }
 }
 
 #[cfg(test)]

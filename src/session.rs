@@ -3,9 +3,9 @@
 //! [`Mode`] (what a light path carries), the checks that a scene can be
 //! rendered in it, the spectral warm-up, and the pass loop with its callback.
 
-use crate::film::Image;
+use crate::film::{FilmState, Image};
 use crate::integrator::Integrator;
-use crate::render::{PassReport, RenderOptions, RenderStats, render_passes};
+use crate::render::{PassReport, RenderOptions, RenderStats, render_passes, render_progressive};
 use crate::scene::Scene;
 use crate::spectrum::{Polarized, Rgb, Sampled};
 
@@ -95,6 +95,37 @@ pub fn render(
         Mode::Spectral => render_passes::<Sampled>(scene, options, on_pass),
         Mode::RgbPolarized => render_passes::<Polarized<Rgb>>(scene, options, on_pass),
         Mode::SpectralPolarized => render_passes::<Polarized<Sampled>>(scene, options, on_pass),
+    }
+}
+
+/// [`render`], continuing from `resume` (a saved [`FilmState`] of this scene
+/// and mode holding samples `[0, k)`) if given, and returning the final
+/// state too (to save as a checkpoint, or merge).
+pub fn render_from(
+    scene: &Scene,
+    mode: Mode,
+    options: &RenderOptions,
+    resume: Option<FilmState>,
+    on_pass: &mut dyn FnMut(&PassReport),
+) -> anyhow::Result<(Image, RenderStats, FilmState)> {
+    match mode {
+        Mode::Rgb => render_progressive::<Rgb>(scene, options, resume, on_pass),
+        Mode::Spectral => render_progressive::<Sampled>(scene, options, resume, on_pass),
+        Mode::RgbPolarized => render_progressive::<Polarized<Rgb>>(scene, options, resume, on_pass),
+        Mode::SpectralPolarized => render_progressive::<Polarized<Sampled>>(scene, options, resume, on_pass),
+    }
+}
+
+/// Renders samples `samples` of every pixel of `scene` in `mode` (after
+/// [`prepare`]): the exact state that [`FilmState::merge`] adds to the
+/// states of other ranges (rendered elsewhere) and [`FilmState::develop`]
+/// turns into the image. See [`crate::render::render_samples`].
+pub fn render_samples(scene: &Scene, mode: Mode, options: &RenderOptions, samples: std::ops::Range<u32>) -> anyhow::Result<FilmState> {
+    match mode {
+        Mode::Rgb => crate::render::render_samples::<Rgb>(scene, options, samples),
+        Mode::Spectral => crate::render::render_samples::<Sampled>(scene, options, samples),
+        Mode::RgbPolarized => crate::render::render_samples::<Polarized<Rgb>>(scene, options, samples),
+        Mode::SpectralPolarized => crate::render::render_samples::<Polarized<Sampled>>(scene, options, samples),
     }
 }
 

@@ -567,7 +567,9 @@ fn sigterm_writes_the_partial_image_and_exits_130() {
     let (exr, png, stats) = (dir.join("out.exr"), dir.join("out.png"), dir.join("stats.json"));
     // 32 × 32 at 2^18 spp: minutes of work; one tile row is a fraction of a second.
     let mut child = snell_cmd(
-        &["render", s(&scene), "-D", "spp=262144", "--threads", "2", "-o", s(&exr), "-o", s(&png), "--stats", s(&stats)],
+        // One pass: an interruption leaves the partial image (with passes,
+        // the last complete pass; tests/render_loop.rs).
+        &["render", s(&scene), "-D", "spp=262144", "--threads", "2", "--passes", "1", "-o", s(&exr), "-o", s(&png), "--stats", s(&stats)],
         &dir,
     )
     .stderr(std::process::Stdio::piped())

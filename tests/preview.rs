@@ -88,8 +88,28 @@ fn test_image(w: u32, h: u32, stokes: bool, salt: f32) -> Image {
     image
 }
 
+/// An empty film state: the preview reads only the report's image and figures.
+fn no_state() -> &'static snell::film::FilmState {
+    static STATE: std::sync::OnceLock<snell::film::FilmState> = std::sync::OnceLock::new();
+    STATE.get_or_init(|| {
+        snell::film::FilmState::empty(snell::film::accumulator::StateHeader {
+            film_size: [1, 1],
+            crop: [0, 0, 1, 1],
+            seed: 0,
+            sample_count: 16,
+            fingerprint: 0,
+            pixel_format: "rgb".into(),
+            layout: snell::film::accumulator::Layout { camera: true, splats: false, stokes: false, extra: vec![] },
+            ranges: vec![],
+            complete: true,
+            samples_taken: 0,
+            invalid_samples: 0,
+        })
+    })
+}
+
 fn report(image: &Image, pass: u32) -> PassReport<'_> {
-    PassReport { pass, passes: 4, spp_done: 1 << pass, spp_total: 16, elapsed_seconds: pass as f64 * 0.5, image }
+    PassReport { pass, passes: 4, spp_done: 1 << pass, spp_total: 16, elapsed_seconds: pass as f64 * 0.5, image, state: no_state() }
 }
 
 /// Decodes a frame: (width, height, layers, pass, floats).

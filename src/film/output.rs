@@ -97,6 +97,23 @@ fn write_atomically(path: &Path, body: impl FnOnce(&mut std::io::BufWriter<std::
 }
 
 pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
+    write_image_with(image, path, &ExrMetadata::default())
+}
+
+/// Further EXR header attributes: text attributes, and an optional block of
+/// bytes (a serialised [`super::FilmState`], the exact state of a checkpoint).
+/// Other formats ignore them.
+#[derive(Clone, Debug, Default)]
+pub struct ExrMetadata {
+    pub text: Vec<(String, String)>,
+    pub state: Option<Vec<u8>>,
+}
+
+/// The header attribute that holds a checkpoint's film state (type `bytes`).
+pub const STATE_ATTRIBUTE: &str = "snell.state";
+
+/// [`write_image`] with further EXR header attributes.
+pub fn write_image_with(image: &Image, path: &Path, meta: &ExrMetadata) -> anyhow::Result<()> {
     let format = Format::from_path(path).ok_or_else(|| {
         anyhow::anyhow!("cannot tell the image format of {}: use one of .{}", path.display(), Format::EXTENSIONS.join(", ."))
     })?;
@@ -106,7 +123,7 @@ pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
     let srgb8 = |v: f32| (linear_to_srgb(v.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8;
     write_atomically(path, |f| {
         match format {
-            Format::Exr if image.layers.is_empty() && image.channels.is_empty() && image.pixel_format == PixelFormat::Rgb => {
+            Format::Exr if image.layers.is_empty() && image.channels.is_empty() && image.pixel_format == PixelFormat::Rgb && meta.text.is_empty() && meta.state.is_none() => {
                 use exr::prelude::WritableImage;
                 let channels = exr::prelude::SpecificChannels::rgb(|exr::math::Vec2(x, y)| {
                     let p: Rgb = image.pixels[y * w + x];
@@ -114,7 +131,7 @@ pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
                 });
                 exr::prelude::Image::from_channels((w, h), channels).write().to_buffered(f)?;
             }
-            Format::Exr => write_layered_exr(image, f)?,
+            Format::Exr => write_layered_exr(image, meta, f)?,
             Format::Png => {
                 use image::ImageEncoder;
                 let mut buf = Vec::with_capacity(w * h * 4);
@@ -164,7 +181,7 @@ pub fn write_image(image: &Image, path: &Path) -> anyhow::Result<()> {
 /// layers also repeats R, G, B as `S0.*`, so the file has the channels
 /// Mitsuba's `stokes` integrator writes), then the scalar channels (`A`,
 /// AOVs) by name.
-fn write_layered_exr(image: &Image, out: &mut std::io::BufWriter<std::fs::File>) -> anyhow::Result<()> {
+fn write_layered_exr(image: &Image, meta: &ExrMetadata, out: &mut std::io::BufWriter<std::fs::File>) -> anyhow::Result<()> {
     use exr::prelude as x;
     use exr::prelude::WritableImage;
     let channel = |name: String, pixels: &[Rgb], c: usize| {
@@ -192,14 +209,42 @@ fn write_layered_exr(image: &Image, out: &mut std::io::BufWriter<std::fs::File>)
             channels.push(channel(format!("{prefix}{rgb}"), pixels, c));
         }
     }
+    let mut attributes = x::LayerAttributes::default();
+    let text = |s: &str| x::Text::new_or_none(s).ok_or_else(|| anyhow::anyhow!("EXR attribute text must be Latin-1: {s}"));
+    for (name, value) in &meta.text {
+        attributes.other.insert(text(name)?, x::AttributeValue::Text(text(value)?));
+    }
+    if let Some(bytes) = &meta.state {
+        let value = x::AttributeValue::Bytes { type_hint: text("snell-film-state")?, bytes: x::SmallVec::from_vec(bytes.clone()) };
+        attributes.other.insert(text(STATE_ATTRIBUTE)?, value);
+    }
     let layer = x::Layer::new(
         (image.width as usize, image.height as usize),
-        x::LayerAttributes::default(),
+        attributes,
         x::Encoding::FAST_LOSSLESS,
         x::AnyChannels::sort(channels),
     );
     x::Image::from_layer(layer).write().to_buffered(out)?;
     Ok(())
+}
+
+/// The further header attributes of an EXR file (its text attributes, and
+/// the bytes of [`STATE_ATTRIBUTE`] if present), read without its pixels.
+pub fn read_exr_metadata(path: &Path) -> anyhow::Result<ExrMetadata> {
+    use exr::meta::attribute::AttributeValue;
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| anyhow::anyhow!("cannot read EXR image {}: {e}", path.display()))?;
+    let mut out = ExrMetadata::default();
+    for header in meta.headers.iter().take(1) {
+        for (name, value) in header.own_attributes.other.iter().chain(&header.shared_attributes.other) {
+            match value {
+                AttributeValue::Text(t) => out.text.push((name.to_string(), t.to_string())),
+                AttributeValue::Bytes { bytes, .. } if name.to_string() == STATE_ATTRIBUTE => out.state = Some(bytes.to_vec()),
+                _ => {}
+            }
+        }
+    }
+    out.text.sort();
+    Ok(out)
 }
 
 /// Reads an EXR (as written by Snell or Mitsuba): R, G, B (or a grey Y) as

@@ -1,0 +1,764 @@
+//! The exact film accumulator: what a render of a range of samples leaves
+//! behind ([`FilmState`]), the sink that integrators write into ([`Sink`]),
+//! and its (de)serialisation for checkpoints and distributed rendering.
+//!
+//! # Why fixed point
+//!
+//! A pixel is Σ w·L / Σ w over the samples that reach it (w the
+//! reconstruction filter's weight), plus, for light tracing, Σ splats / N.
+//! Floating-point sums depend on the order of their terms, so an image
+//! rendered in passes, or on several threads, or merged from several
+//! machines, would differ in its last bits from the one-piece render. Here
+//! every term is rounded once, on its own, to a fixed-point integer, and
+//! the sums are integer sums: associative and commutative, so the image is
+//! bit-identical whatever the thread count, the split of the sample range
+//! into passes, or the order in which [`FilmState::merge`] adds ranges.
+//!
+//! # Range and precision
+//!
+//! Each accumulator is an `i128` counting units of 2^−[`FRACTION_BITS`]
+//! (2^−52). A sample's values are rounded once to multiples of 2^−32
+//! (≈ 2.3·10^−10, far below an `f32` pixel's precision for any value above
+//! 10^−3, and unbiased: rounded to nearest), clamped to ±2^31 ≈ ±2.1·10^9 (a
+//! sample brighter than that is a firefly no image can show); each filter
+//! weight is truncated to a multiple of 2^−20 (≈ 10^−6, the same weight in
+//! a pixel's sum and in its sum of weights, so the pixel stays a weighted
+//! mean). A term w·v is then an exact integer product, below 2^20 · 2^63 =
+//! 2^83 units. A pixel receives terms from at most the 9 × 9 pixels of the
+//! widest filter footprint, each with at most 2^32 samples (sample indices
+//! are `u32`), so camera sums stay below 2^83 · 81 · 2^32 < 2^122 and cannot
+//! overflow. Splats (light tracing: any number per path) and merges add with
+//! saturation instead. NaN values count as zero (the render loop zeroes and
+//! counts them before). In a [`Sink`], the colour and weight sums of
+//! samples below 1024 (in film units) go to `i64` sums first, which move into
+//! the `i128` ones whenever an addition would overflow — exact either way,
+//! and nearly as cheap as the float sums they replace.
+
+use super::{Channel, Filter, Image, Layer, PixelFormat};
+use crate::spectrum::Rgb;
+use glam::Vec2;
+use serde::{Deserialize, Serialize};
+use std::ops::Range;
+
+/// Fractional bits of the fixed-point accumulators: those of a value plus
+/// those of a weight.
+pub const FRACTION_BITS: u32 = VALUE_BITS + WEIGHT_BITS;
+/// Fractional bits of a sample's values, and of a filter weight.
+pub const VALUE_BITS: u32 = 32;
+pub const WEIGHT_BITS: u32 = 20;
+const VALUE_SCALE: f64 = (1u64 << VALUE_BITS) as f64;
+const WEIGHT_SCALE: f32 = (1u32 << WEIGHT_BITS) as f32;
+const SCALE: f64 = (1u64 << FRACTION_BITS) as f64;
+
+/// A sample's value in units of 2^−32: rounded to nearest, saturated to
+/// the `i64` range (±2^31 in film units), NaN as zero.
+#[inline(always)]
+pub fn fixed_value(v: f32) -> i64 {
+    let x = v as f64 * VALUE_SCALE;
+    (x + 0.5f64.copysign(x)) as i64
+}
+
+/// A filter weight in units of 2^−20: truncated, within ±1.
+#[inline(always)]
+pub fn fixed_weight(w: f32) -> i64 {
+    ((w * WEIGHT_SCALE) as i32).clamp(-(1 << WEIGHT_BITS), 1 << WEIGHT_BITS) as i64
+}
+
+/// The exact term `w`·`v` of fixed-point weight and value, in units of 2^−52.
+#[inline(always)]
+pub fn term(w: i64, v: i64) -> i128 {
+    w as i128 * v as i128
+}
+
+/// A fixed-point sum back in film units.
+#[inline]
+pub fn unfixed(v: i128) -> f64 {
+    v as f64 / SCALE
+}
+
+/// Which sums a film keeps per pixel, in this order: the filtered camera
+/// samples (R, G, B and the weight), light-tracing splats (R, G, B), the
+/// Stokes components S1–S3 of a polarized render (R, G, B each, filtered
+/// with the camera samples' weights), then further scalar channels (alpha,
+/// AOVs, moments) filtered likewise.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Layout {
+    pub camera: bool,
+    pub splats: bool,
+    pub stokes: bool,
+    pub extra: Vec<String>,
+}
+
+impl Layout {
+    /// Accumulators per pixel.
+    pub fn stride(&self) -> usize {
+        4 * self.camera as usize + 3 * self.splats as usize + 9 * self.stokes as usize + self.extra.len()
+    }
+    fn splat_offset(&self) -> usize {
+        4 * self.camera as usize
+    }
+    fn stokes_offset(&self) -> usize {
+        self.splat_offset() + 3 * self.splats as usize
+    }
+    fn extra_offset(&self) -> usize {
+        self.stokes_offset() + 9 * self.stokes as usize
+    }
+}
+
+/// Widest filter footprint in pixels (radius ≤ 4).
+const MAX_FOOTPRINT: usize = 9;
+/// Further channels whose values are rounded once per sample (more are
+/// rounded per pixel: the same values, more slowly).
+const MAX_EXTRA: usize = 32;
+
+/// A rectangle of the film (a tile with a border of the filter's radius, or
+/// the whole crop window with one) that one worker adds samples and splats
+/// to; [`FilmState::add_sink`] adds it to the film.
+pub struct Sink {
+    x0: i32,
+    y0: i32,
+    width: usize,
+    height: usize,
+    stride: usize,
+    splat_offset: usize,
+    stokes_offset: usize,
+    extra_offset: usize,
+    n_extra: usize,
+    /// The sums, in fixed point: the wide accumulators.
+    data: Vec<i128>,
+    /// Colour and weight sums of camera samples in `i64` (cheaper to add
+    /// to); a sum that would overflow moves to `data` instead.
+    narrow: Vec<[i64; 4]>,
+}
+
+/// Samples whose largest fixed-point value (colour, and the weight's 1) is
+/// below this (1024 in film units) go to the narrow sums: a term then stays
+/// below 2^20 · 2^42 = 2^62.
+const NARROW_LIMIT: u64 = 1 << 42;
+
+impl Sink {
+    /// A sink of `width` × `height` pixels whose top-left pixel is (`x0`,
+    /// `y0`) in crop-window coordinates, keeping the sums `layout` names.
+    pub fn new(layout: &Layout, x0: i32, y0: i32, width: usize, height: usize) -> Sink {
+        let stride = layout.stride();
+        Sink {
+            x0,
+            y0,
+            width,
+            height,
+            stride,
+            splat_offset: layout.splat_offset(),
+            stokes_offset: layout.stokes_offset(),
+            extra_offset: layout.extra_offset(),
+            n_extra: layout.extra.len(),
+            data: vec![0; width * height * stride],
+            narrow: if layout.camera { vec![[0; 4]; width * height] } else { vec![] },
+        }
+    }
+
+    /// Adds a camera sample taken at continuous film position `pos` (pixels,
+    /// crop-window coordinates) with colour `rgb`, the Stokes components
+    /// `s123` (polarized renders) and further channels `extra` (as many as
+    /// the layout names), each weighted by the filter; the weights are
+    /// summed too. Only for a layout with `camera`.
+    #[inline]
+    pub fn add_sample(&mut self, filter: &Filter, pos: Vec2, rgb: Rgb, s123: Option<&[Rgb; 3]>, extra: &[f32]) {
+        let r = filter.radius();
+        // Pixel i has its centre at i + 0.5; clamp the footprint to the sink.
+        let x0 = ((pos.x - 0.5 - r).ceil() as i32).max(self.x0);
+        let x1 = ((pos.x - 0.5 + r).floor() as i32).min(self.x0 + self.width as i32 - 1);
+        let y0 = ((pos.y - 0.5 - r).ceil() as i32).max(self.y0);
+        let y1 = ((pos.y - 0.5 + r).floor() as i32).min(self.y0 + self.height as i32 - 1);
+        if x1 < x0 || y1 < y0 {
+            return;
+        }
+        let (nx, ny) = (((x1 - x0 + 1) as usize).min(MAX_FOOTPRINT), ((y1 - y0 + 1) as usize).min(MAX_FOOTPRINT));
+        let (mut wx, mut wy) = ([0.0f32; MAX_FOOTPRINT], [0.0f32; MAX_FOOTPRINT]);
+        for (i, w) in wx[..nx].iter_mut().enumerate() {
+            *w = filter.eval((x0 + i as i32) as f32 + 0.5 - pos.x);
+        }
+        for (j, w) in wy[..ny].iter_mut().enumerate() {
+            *w = filter.eval((y0 + j as i32) as f32 + 0.5 - pos.y);
+        }
+        // Values rounded once per sample; weights once per pixel.
+        let v = [fixed_value(rgb[0]), fixed_value(rgb[1]), fixed_value(rgb[2]), 1 << VALUE_BITS];
+        let s = s123.map(|s| [0, 1, 2, 3, 4, 5, 6, 7, 8].map(|k| fixed_value(s[k / 3][k % 3])));
+        let stride = self.stride;
+        let peak = v.iter().map(|q| q.unsigned_abs()).max().unwrap_or(0);
+        // Every term of a sample below the limit fits an i64 (|w| ≤ 2^20).
+        let narrow = peak < NARROW_LIMIT && !self.narrow.is_empty();
+        for j in 0..ny {
+            if wy[j] == 0.0 {
+                continue;
+            }
+            let row = ((y0 - self.y0) as usize + j) * self.width + (x0 - self.x0) as usize;
+            if narrow {
+                let (sums, wide) = (&mut self.narrow, &mut self.data);
+                for (i, (n, &wxi)) in sums[row..row + nx].iter_mut().zip(&wx[..nx]).enumerate() {
+                    let w = fixed_weight(wxi * wy[j]);
+                    for k in 0..4 {
+                        let t = w * v[k];
+                        match n[k].checked_add(t) {
+                            Some(sum) => n[k] = sum,
+                            None => {
+                                // Rare: the narrow sum moves to the wide one.
+                                wide[(row + i) * stride + k] += n[k] as i128 + t as i128;
+                                n[k] = 0;
+                            }
+                        }
+                    }
+                }
+                if s.is_none() {
+                    continue;
+                }
+            }
+            for i in 0..nx {
+                let w = fixed_weight(wx[i] * wy[j]);
+                if w == 0 {
+                    continue;
+                }
+                let px = &mut self.data[(row + i) * stride..(row + i + 1) * stride];
+                if !narrow {
+                    if let Some((c, _)) = px.split_first_chunk_mut::<4>() {
+                        for k in 0..4 {
+                            c[k] += term(w, v[k]);
+                        }
+                    }
+                }
+                if let Some(s) = &s {
+                    for (d, &q) in px[self.stokes_offset..self.stokes_offset + 9].iter_mut().zip(s) {
+                        *d += term(w, q);
+                    }
+                }
+            }
+        }
+        let n_extra = self.n_extra.min(extra.len());
+        if n_extra > 0 {
+            self.add_extra(x0, y0, &wx[..nx], &wy[..ny], &extra[..n_extra]);
+        }
+    }
+
+    /// The further channels of a sample with the footprint (from pixel
+    /// (`x0`, `y0`)) and weights of [`Sink::add_sample`].
+    fn add_extra(&mut self, x0: i32, y0: i32, wx: &[f32], wy: &[f32], extra: &[f32]) {
+        let mut e = [0i64; MAX_EXTRA];
+        let quantized = extra.len() <= MAX_EXTRA;
+        for (q, &x) in e.iter_mut().zip(extra) {
+            *q = fixed_value(x);
+        }
+        let (stride, o) = (self.stride, self.extra_offset);
+        for (j, &wyj) in wy.iter().enumerate() {
+            let row = ((y0 - self.y0) as usize + j) * self.width + (x0 - self.x0) as usize;
+            for (i, &wxi) in wx.iter().enumerate() {
+                let w = fixed_weight(wxi * wyj);
+                if w == 0 {
+                    continue;
+                }
+                let at = (row + i) * stride + o;
+                let dst = &mut self.data[at..at + extra.len()];
+                if quantized {
+                    for (d, &q) in dst.iter_mut().zip(&e) {
+                        *d += term(w, q);
+                    }
+                } else {
+                    for (d, &x) in dst.iter_mut().zip(extra) {
+                        *d += term(w, fixed_value(x));
+                    }
+                }
+            }
+        }
+    }
+
+    /// Adds `value` at film position `pos` (pixels, crop-window
+    /// coordinates) to the splat sums, spread over the filter's footprint
+    /// with weights that sum to one (so a splat deposits exactly its value;
+    /// the part that falls outside the window is lost). Only for a layout
+    /// with `splats`.
+    pub fn splat(&mut self, filter: &Filter, pos: Vec2, value: Rgb) {
+        let r = filter.radius();
+        let x0 = (pos.x - 0.5 - r).ceil() as i32;
+        let y0 = (pos.y - 0.5 - r).ceil() as i32;
+        let nx = (((pos.x - 0.5 + r).floor() as i32 - x0 + 1).max(0) as usize).min(MAX_FOOTPRINT);
+        let ny = (((pos.y - 0.5 + r).floor() as i32 - y0 + 1).max(0) as usize).min(MAX_FOOTPRINT);
+        let (mut wx, mut wy) = ([0.0f32; MAX_FOOTPRINT], [0.0f32; MAX_FOOTPRINT]);
+        for i in 0..nx {
+            wx[i] = filter.eval((x0 + i as i32) as f32 + 0.5 - pos.x);
+        }
+        for j in 0..ny {
+            wy[j] = filter.eval((y0 + j as i32) as f32 + 0.5 - pos.y);
+        }
+        let norm = wx[..nx].iter().sum::<f32>() * wy[..ny].iter().sum::<f32>();
+        if !(norm > 0.0) {
+            return;
+        }
+        let v = [fixed_value(value[0]), fixed_value(value[1]), fixed_value(value[2])];
+        for j in 0..ny {
+            let y = y0 + j as i32 - self.y0;
+            if y < 0 || y >= self.height as i32 || wy[j] == 0.0 {
+                continue;
+            }
+            for i in 0..nx {
+                let x = x0 + i as i32 - self.x0;
+                if x < 0 || x >= self.width as i32 {
+                    continue;
+                }
+                let w = fixed_weight(wx[i] * wy[j] / norm);
+                let at = (y as usize * self.width + x as usize) * self.stride + self.splat_offset;
+                for (d, &q) in self.data[at..at + 3].iter_mut().zip(&v) {
+                    *d = d.saturating_add(term(w, q));
+                }
+            }
+        }
+    }
+}
+
+/// The accumulated sums of a render of some sample ranges of every pixel of
+/// the crop window: what [`crate::render::render_samples`] returns, what
+/// [`FilmState::merge`] adds exactly, and what [`FilmState::develop`] turns
+/// into the image. Serialises with [`FilmState::to_bytes`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct FilmState {
+    pub header: StateHeader,
+    data: Vec<i128>,
+}
+
+/// What a [`FilmState`] holds, beside its sums.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StateHeader {
+    /// The full film (the camera's projection) and the crop window rendered:
+    /// offset (x, y) and size (width, height).
+    pub film_size: [u32; 2],
+    pub crop: [u32; 4],
+    /// The sampler's seed and samples per pixel of the full render.
+    pub seed: u64,
+    pub sample_count: u32,
+    /// A digest of the scene and the mode: states only merge when it agrees.
+    pub fingerprint: u64,
+    /// The pixel format the image is developed in (its name).
+    pub pixel_format: String,
+    pub layout: Layout,
+    /// The sample indices rendered for every pixel: disjoint ranges, sorted
+    /// and coalesced. Meaningful only when `complete`.
+    pub ranges: Vec<Range<u32>>,
+    /// Whether every pixel has every sample of `ranges` (false: a render
+    /// stopped part-way, whose image is partial).
+    pub complete: bool,
+    /// Samples (camera samples or light paths) actually taken, and those
+    /// whose value was NaN or infinite (counted as zero).
+    pub samples_taken: u64,
+    pub invalid_samples: u64,
+}
+
+const MAGIC: &[u8; 8] = b"SNELLFS\0";
+const VERSION: u32 = 1;
+
+impl FilmState {
+    /// An empty state (no samples) of a film with `header` (its ranges empty).
+    pub fn empty(mut header: StateHeader) -> FilmState {
+        header.ranges.clear();
+        header.complete = true;
+        header.samples_taken = 0;
+        header.invalid_samples = 0;
+        let n = header.crop[2] as usize * header.crop[3] as usize * header.layout.stride();
+        FilmState { header, data: vec![0; n] }
+    }
+
+    pub fn width(&self) -> u32 {
+        self.header.crop[2]
+    }
+
+    pub fn height(&self) -> u32 {
+        self.header.crop[3]
+    }
+
+    /// The sample ranges held (every pixel has these samples when complete).
+    pub fn ranges(&self) -> &[Range<u32>] {
+        &self.header.ranges
+    }
+
+    /// Samples per pixel held: the total length of the ranges.
+    pub fn spp(&self) -> u32 {
+        self.header.ranges.iter().map(|r| r.end - r.start).sum()
+    }
+
+    /// The one range `[0, k)` held, if the state holds exactly a prefix of
+    /// the samples (what a checkpoint of a pass loop holds); `Some(0..0)`
+    /// for an empty state.
+    pub fn prefix(&self) -> Option<u32> {
+        match self.header.ranges.as_slice() {
+            [] => Some(0),
+            [r] if r.start == 0 => Some(r.end),
+            _ => None,
+        }
+    }
+
+    /// Whether every sample of the render is held.
+    pub fn is_finished(&self) -> bool {
+        self.header.complete && self.prefix() == Some(self.header.sample_count)
+    }
+
+    /// Records that samples `range` of every pixel were added.
+    pub(crate) fn add_range(&mut self, range: Range<u32>) {
+        if !range.is_empty() {
+            self.header.ranges.push(range);
+            self.header.ranges = coalesce(std::mem::take(&mut self.header.ranges));
+        }
+    }
+
+    /// Adds a sink's sums (the parts inside the crop window).
+    pub fn add_sink(&mut self, sink: &Sink) {
+        let (w, h) = (self.width() as i32, self.height() as i32);
+        let stride = self.header.layout.stride();
+        debug_assert_eq!(stride, sink.stride);
+        for sy in 0..sink.height {
+            let y = sink.y0 + sy as i32;
+            if y < 0 || y >= h {
+                continue;
+            }
+            let xs = sink.x0.max(0);
+            let xe = (sink.x0 + sink.width as i32).min(w);
+            if xe <= xs {
+                continue;
+            }
+            let dst = &mut self.data[(y as usize * w as usize + xs as usize) * stride..(y as usize * w as usize + xe as usize) * stride];
+            let s0 = (sy * sink.width + (xs - sink.x0) as usize) * stride;
+            for (d, s) in dst.iter_mut().zip(&sink.data[s0..]) {
+                *d = d.saturating_add(*s);
+            }
+            if !sink.narrow.is_empty() {
+                let n0 = sy * sink.width + (xs - sink.x0) as usize;
+                for (d, n) in dst.chunks_exact_mut(stride).zip(&sink.narrow[n0..]) {
+                    for k in 0..4 {
+                        d[k] += n[k] as i128;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Checks that `other` can be merged into this state: the same film,
+    /// scene, seed and layout, and disjoint sample ranges.
+    pub fn check_compatible(&self, other: &FilmState) -> anyhow::Result<()> {
+        let (a, b) = (&self.header, &other.header);
+        let differs = |what: &str, x: String, y: String| anyhow::anyhow!("cannot merge film states: {what} differs ({x} vs {y})");
+        if a.film_size != b.film_size || a.crop != b.crop {
+            return Err(differs("the film or crop window", format!("{:?} {:?}", a.film_size, a.crop), format!("{:?} {:?}", b.film_size, b.crop)));
+        }
+        if a.seed != b.seed {
+            return Err(differs("the seed", a.seed.to_string(), b.seed.to_string()));
+        }
+        if a.sample_count != b.sample_count {
+            return Err(differs("the sample count", a.sample_count.to_string(), b.sample_count.to_string()));
+        }
+        if a.fingerprint != b.fingerprint || a.layout != b.layout || a.pixel_format != b.pixel_format {
+            return Err(differs("the scene or mode", format!("{:016x}", a.fingerprint), format!("{:016x}", b.fingerprint)));
+        }
+        for r in &a.ranges {
+            if let Some(o) = b.ranges.iter().find(|o| o.start < r.end && r.start < o.end) {
+                anyhow::bail!("cannot merge film states: both hold samples {}..{}", r.start.max(o.start), r.end.min(o.end));
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds the samples of `other` (disjoint sample ranges of the same
+    /// render) to this state. Exact: merging states in any order and any
+    /// grouping gives the same sums, bit for bit, as rendering their ranges
+    /// at once.
+    pub fn merge(&mut self, other: &FilmState) -> anyhow::Result<()> {
+        self.check_compatible(other)?;
+        for (d, s) in self.data.iter_mut().zip(&other.data) {
+            *d = d.saturating_add(*s);
+        }
+        let h = &mut self.header;
+        h.ranges.extend(other.header.ranges.iter().cloned());
+        h.ranges = coalesce(std::mem::take(&mut h.ranges));
+        h.complete &= other.header.complete;
+        h.samples_taken += other.header.samples_taken;
+        h.invalid_samples += other.header.invalid_samples;
+        Ok(())
+    }
+
+    /// The image: Σ w·L / Σ w per pixel for camera samples (black where no
+    /// weight landed or the quotient is not finite) plus Σ splats / (light
+    /// paths traced), with the Stokes layers and scalar channels.
+    pub fn develop(&self) -> Image {
+        let h = &self.header;
+        let layout = &h.layout;
+        let (w, ht) = (self.width(), self.height());
+        let stride = layout.stride();
+        let pixels_n = w as usize * ht as usize;
+        let px = |i: usize| &self.data[i * stride..(i + 1) * stride];
+        let normalize = |sum: &[i128], weight: i128| {
+            let wf = weight as f64;
+            let v = Rgb::new((sum[0] as f64 / wf) as f32, (sum[1] as f64 / wf) as f32, (sum[2] as f64 / wf) as f32);
+            if unfixed(weight) > 1e-9 && v.is_finite() { v } else { Rgb::BLACK }
+        };
+        let paths = h.samples_taken.max(1) as f64;
+        let pixels = (0..pixels_n)
+            .map(|i| {
+                let p = px(i);
+                let mut v = if layout.camera { normalize(&p[..3], p[3]) } else { Rgb::BLACK };
+                if layout.splats {
+                    let s = &p[layout.splat_offset()..layout.splat_offset() + 3];
+                    let splat = Rgb::new((unfixed(s[0]) / paths) as f32, (unfixed(s[1]) / paths) as f32, (unfixed(s[2]) / paths) as f32);
+                    if splat.is_finite() {
+                        v += splat;
+                    }
+                }
+                v
+            })
+            .collect();
+        let mut image = Image::new(w, ht, pixels);
+        image.pixel_format = PixelFormat::from_name(&h.pixel_format).unwrap_or(PixelFormat::Rgb);
+        if layout.stokes && layout.camera {
+            let o = layout.stokes_offset();
+            for (k, name) in ["S1", "S2", "S3"].into_iter().enumerate() {
+                let pixels = (0..pixels_n).map(|i| normalize(&px(i)[o + 3 * k..o + 3 * k + 3], px(i)[3])).collect();
+                image.layers.push(Layer { name: name.to_string(), pixels });
+            }
+        }
+        let o = layout.extra_offset();
+        for (k, name) in layout.extra.iter().enumerate() {
+            let values = (0..pixels_n)
+                .map(|i| {
+                    let p = px(i);
+                    let v = (p[o + k] as f64 / p[3] as f64) as f32;
+                    if p[3] > 0 && v.is_finite() { v } else { 0.0 }
+                })
+                .collect();
+            image.channels.push(Channel { name: name.clone(), values });
+        }
+        if !layout.camera && image.pixel_format.has_alpha() {
+            // Light paths have no camera ray to cover a pixel: opaque everywhere.
+            image.channels.push(Channel { name: "A".into(), values: vec![1.0; pixels_n] });
+        }
+        image
+    }
+
+    /// The state as bytes: a magic tag and version, the header as JSON, and
+    /// the sums as zigzag LEB128 integers, deflated.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        use std::io::Write;
+        let header = serde_json::to_vec(&self.header).unwrap_or_default();
+        let mut raw = Vec::with_capacity(self.data.len() * 8);
+        for &v in &self.data {
+            let mut z = ((v << 1) ^ (v >> 127)) as u128;
+            loop {
+                let byte = (z & 0x7f) as u8;
+                z >>= 7;
+                if z == 0 {
+                    raw.push(byte);
+                    break;
+                }
+                raw.push(byte | 0x80);
+            }
+        }
+        let mut enc = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::fast());
+        // Writing to a Vec cannot fail.
+        let _ = enc.write_all(&raw);
+        let packed = enc.finish().unwrap_or_default();
+        let mut out = Vec::with_capacity(24 + header.len() + packed.len());
+        out.extend_from_slice(MAGIC);
+        out.extend_from_slice(&VERSION.to_le_bytes());
+        out.extend_from_slice(&(header.len() as u32).to_le_bytes());
+        out.extend_from_slice(&header);
+        out.extend_from_slice(&(packed.len() as u64).to_le_bytes());
+        out.extend_from_slice(&packed);
+        out
+    }
+
+    /// Reads a state written by [`FilmState::to_bytes`]; any damage or
+    /// inconsistency is an error.
+    pub fn from_bytes(bytes: &[u8]) -> anyhow::Result<FilmState> {
+        use std::io::Read;
+        let bad = |what: &str| anyhow::anyhow!("not a valid Snell film state: {what}");
+        let take = |at: usize, n: usize| bytes.get(at..at + n).ok_or_else(|| bad("truncated"));
+        if take(0, 8)? != MAGIC {
+            return Err(bad("wrong magic tag"));
+        }
+        let version = u32::from_le_bytes(take(8, 4)?.try_into()?);
+        if version != VERSION {
+            anyhow::bail!("film state version {version} is not the {VERSION} this Snell reads");
+        }
+        let hlen = u32::from_le_bytes(take(12, 4)?.try_into()?) as usize;
+        let header: StateHeader = serde_json::from_slice(take(16, hlen)?).map_err(|e| bad(&format!("header: {e}")))?;
+        let plen = u64::from_le_bytes(take(16 + hlen, 8)?.try_into()?) as usize;
+        let packed = take(24 + hlen, plen.min(bytes.len()))?;
+        let n = (header.crop[2] as u64 * header.crop[3] as u64).saturating_mul(header.layout.stride() as u64);
+        if n > crate::limits::max_film_bytes() / 16 {
+            return Err(bad("film larger than the memory budget"));
+        }
+        let n = n as usize;
+        let mut raw = Vec::new();
+        flate2::read::DeflateDecoder::new(packed).take(n as u64 * 19 + 1).read_to_end(&mut raw).map_err(|e| bad(&format!("sums: {e}")))?;
+        let mut data = Vec::with_capacity(n);
+        let mut z: u128 = 0;
+        let mut shift = 0;
+        for &byte in &raw {
+            if shift >= 128 {
+                return Err(bad("integer too long"));
+            }
+            z |= ((byte & 0x7f) as u128) << shift;
+            shift += 7;
+            if byte & 0x80 == 0 {
+                data.push(((z >> 1) as i128) ^ -((z & 1) as i128));
+                (z, shift) = (0, 0);
+            }
+        }
+        if data.len() != n || shift != 0 {
+            return Err(bad(&format!("{} sums where the header says {n}", data.len())));
+        }
+        let mut state = FilmState { header, data };
+        let ranges = std::mem::take(&mut state.header.ranges);
+        if ranges.iter().any(|r| r.start >= r.end || r.end > state.header.sample_count) {
+            return Err(bad("sample ranges outside the render"));
+        }
+        state.header.ranges = coalesce(ranges.clone());
+        if state.header.ranges.iter().map(|r| r.end - r.start).sum::<u32>() != ranges.iter().map(|r| r.end - r.start).sum::<u32>() {
+            return Err(bad("overlapping sample ranges"));
+        }
+        Ok(state)
+    }
+}
+
+/// Sorted, adjacent ranges joined.
+fn coalesce(mut ranges: Vec<Range<u32>>) -> Vec<Range<u32>> {
+    ranges.sort_by_key(|r| r.start);
+    let mut out: Vec<Range<u32>> = Vec::with_capacity(ranges.len());
+    for r in ranges {
+        match out.last_mut() {
+            Some(last) if last.end >= r.start => last.end = last.end.max(r.end),
+            _ => out.push(r),
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::film::FilterKind;
+
+    fn header(layout: Layout) -> StateHeader {
+        StateHeader {
+            film_size: [8, 8],
+            crop: [0, 0, 8, 8],
+            seed: 1,
+            sample_count: 16,
+            fingerprint: 7,
+            pixel_format: "rgb".into(),
+            layout,
+            ranges: vec![],
+            complete: true,
+            samples_taken: 0,
+            invalid_samples: 0,
+        }
+    }
+
+    fn camera() -> Layout {
+        Layout { camera: true, splats: false, stokes: false, extra: vec!["A".into()] }
+    }
+
+    #[test]
+    fn fixed_point_rounds_saturates_and_zeroes_nan() {
+        assert_eq!(fixed_value(1.0), 1i64 << 32);
+        assert_eq!(fixed_value(-0.5), -(1i64 << 31));
+        assert_eq!(fixed_value(f32::NAN), 0);
+        assert_eq!(fixed_value(1e30), i64::MAX);
+        assert_eq!(fixed_value(-1e30), i64::MIN);
+        // Rounded to nearest: no bias toward zero.
+        assert_eq!(fixed_value(3.0 / VALUE_SCALE as f32 * 0.75), 2);
+        assert_eq!(fixed_weight(1.0), 1 << 20);
+        assert_eq!(fixed_weight(2.0), 1 << 20);
+        assert_eq!(fixed_weight(-0.25), -(1 << 18));
+        assert_eq!(unfixed(term(fixed_weight(0.5), fixed_value(1234.5))), 617.25);
+        // Sums of the most terms a pixel can get stay far from overflow.
+        assert!(term(1 << 20, i64::MIN).abs().checked_mul(81 << 32).is_some());
+    }
+
+    #[test]
+    fn box_filter_adds_into_one_pixel() {
+        let layout = camera();
+        let mut s = Sink::new(&layout, 0, 0, 4, 4);
+        s.add_sample(&Filter::new(FilterKind::Box), Vec2::new(1.3, 2.9), Rgb::new(1.0, 2.0, 3.0), None, &[1.0]);
+        let mut h = header(layout.clone());
+        h.crop = [0, 0, 4, 4];
+        let mut state = FilmState::empty(h);
+        state.add_sink(&s);
+        let nonzero: Vec<usize> = (0..16).filter(|&i| state.data[i * layout.stride() + 3] != 0).collect();
+        assert_eq!(nonzero, vec![2 * 4 + 1]);
+    }
+
+    #[test]
+    fn narrow_sums_spill_exactly_and_bright_samples_go_wide() {
+        let layout = Layout { camera: true, splats: false, stokes: false, extra: vec![] };
+        let mut state = FilmState::empty(header(layout.clone()));
+        let mut sink = Sink::new(&layout, 0, 0, 8, 8);
+        let filter = Filter::new(FilterKind::Box);
+        // 1000 is narrow, each term near 2^62: the i64 sums overflow often.
+        let values = [1000.0f32, 999.5, -1000.0, 1e6, 3.0e9, 1000.0, 0.25];
+        for _ in 0..10 {
+            for &v in &values {
+                sink.add_sample(&filter, Vec2::new(2.5, 3.5), Rgb::new(v, -v, 0.5), None, &[]);
+            }
+        }
+        state.add_sink(&sink);
+        let i = (3 * 8 + 2) * layout.stride();
+        let want = |v: f32| 10 * values.iter().map(|&x| term(1 << WEIGHT_BITS, fixed_value(x * v))).sum::<i128>();
+        assert_eq!(state.data[i], want(1.0));
+        assert_eq!(state.data[i + 1], want(-1.0));
+        assert_eq!(state.data[i + 3], 70 * term(1 << WEIGHT_BITS, 1 << VALUE_BITS));
+    }
+
+    #[test]
+    fn constant_signal_develops_to_itself() {
+        let filter = Filter::gaussian(0.5);
+        let mut state = FilmState::empty(header(camera()));
+        let mut sink = Sink::new(&camera(), -2, -2, 12, 12);
+        for j in 0..32 {
+            for i in 0..32 {
+                sink.add_sample(&filter, Vec2::new((i as f32 + 0.5) / 4.0, (j as f32 + 0.5) / 4.0), Rgb::new(0.5, 1.0, 2.0), None, &[1.0]);
+            }
+        }
+        state.add_sink(&sink);
+        let image = state.develop();
+        for p in &image.pixels {
+            assert!((p[0] - 0.5).abs() < 1e-5 && (p[2] - 2.0).abs() < 1e-5);
+        }
+        assert!(image.channel("A").unwrap().values.iter().all(|&a| (a - 1.0).abs() < 1e-6));
+    }
+
+    #[test]
+    fn merge_is_exact_in_any_order_and_refuses_overlaps() {
+        let filter = Filter::gaussian(0.5);
+        let part = |k: u32| {
+            let mut s = FilmState::empty(header(camera()));
+            let mut sink = Sink::new(&camera(), -2, -2, 12, 12);
+            for i in 0..50 {
+                let t = (k * 50 + i) as f32;
+                sink.add_sample(&filter, Vec2::new((t * 0.37) % 8.0, (t * 0.61) % 8.0), Rgb::new(t.sin() * 1e3, 1e-6 * t, 0.3), None, &[0.5]);
+            }
+            s.add_sink(&sink);
+            s.add_range(4 * k..4 * k + 4);
+            s.header.samples_taken = 50;
+            s
+        };
+        let (a, b, c) = (part(0), part(1), part(2));
+        let mut abc = a.clone();
+        abc.merge(&b).unwrap();
+        abc.merge(&c).unwrap();
+        let mut cba = c.clone();
+        cba.merge(&b).unwrap();
+        cba.merge(&a).unwrap();
+        assert_eq!(abc, cba);
+        assert_eq!(abc.ranges(), &[0..12]);
+        assert_eq!(abc.prefix(), Some(12));
+        let e = abc.clone().merge(&b).unwrap_err().to_string();
+        assert!(e.contains("both hold samples 4..8"), "{e}");
+        let bytes = abc.to_bytes();
+        assert_eq!(FilmState::from_bytes(&bytes).unwrap(), abc);
+        assert!(FilmState::from_bytes(&bytes[..bytes.len() - 3]).is_err());
+        assert!(FilmState::from_bytes(b"SNELLFS\0garbage").is_err());
+    }
+}
