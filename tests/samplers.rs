@@ -23,15 +23,17 @@ fn every_sampler_converges_to_mitsubas_cornell_box() {
     let mut rel_mse = Vec::new();
     for name in snell::sampler::NAMES {
         let text = cornell_with(name);
-        let passes = render_passes(&repo("scenes/cornell-box.xml"), Some(&text), params(&[("res", "128")]), 16, 16);
+        let passes = render_passes(&repo("scenes/cornell-box.xml"), Some(&text), params(&[("res", "128")]), 16, 8);
         let c = compare(&passes, &reference, 16, 0.003);
         c.assert_unbiased(&format!("cornell box, {name} sampler"), 0.01);
         rel_mse.push((name, c.rel_mse));
     }
-    // The point of the low-discrepancy samplers: less error at the same
-    // sample count (16 spp × 16 passes, against Mitsuba's 65 536 spp).
+    // The point of the stratified samplers: less error at the same sample
+    // count (8 spp × 16 passes, against Mitsuba's 65 536 spp; measured
+    // relMSE 6.8e-4 independent, 5.0e-4 multijitter, 5.1e-4 sobol, 5.0e-4
+    // zsobol). stratified, orthogonal and ldsampler round 8 up (to 9, 9, 16).
     let get = |n: &str| rel_mse.iter().find(|(m, _)| *m == n).map(|r| r.1).unwrap_or(f64::NAN);
-    for name in ["sobol", "zsobol", "ldsampler", "multijitter"] {
+    for name in ["sobol", "zsobol", "multijitter"] {
         assert!(get(name) < get("independent"), "{name}: relMSE {:.3e} not below independent's {:.3e}", get(name), get("independent"));
     }
 }
@@ -122,7 +124,7 @@ fn bad_sampler_parameters_are_located_errors() {
         &[],
     );
     assert_located(
-        "<sampler type=\"orthogonal\">\n<integer name=\"strength\" value=\"6\"/>\n<integer name=\"sample_count\" value=\"100000\"/></sampler>",
+        "<sampler type=\"orthogonal\">\n<integer name=\"strength\" value=\"6\"/>\n<integer name=\"sample_count\" value=\"5000000\"/></sampler>",
         9,
         "rounds up to",
         &[],
