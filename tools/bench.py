@@ -30,7 +30,8 @@ Mitsuba's independent, multijitter and ldsampler, in the same run, and prints
 relMSE = mean over pixels and channels of (x − ref)² / (ref² + 0.01), averaged
 over the runs; seconds the median render time (Snell: render_seconds of
 --stats; Mitsuba: mi.render + dr.eval, after a warm-up render that compiles the
-kernels). Defaults there: 128², 64 spp, reference 16384 spp.
+kernels; --cpu-time: their CPU time / threads, fairer on a loaded machine).
+Defaults there: 128², 64 spp, reference 16384 spp.
 
 Usage: python3 tools/bench.py [--runs 3] [--scene scenes/cornell-box.xml]...
            [--spp 256] [--res 512] [--threads 2] [-D key=value ...]
@@ -236,12 +237,16 @@ def snell_images(args, scene, params, sampler, spp, seeds, out):
                    "--threads", str(args.threads), "--stats", "/tmp/stats.json"]
             for k, v in params.items():
                 cmd += ["-D", f"{k}={v}"]
+            before = os.times()
             r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+            after = os.times()
             if r.returncode != 0:
                 print(r.stdout)
                 sys.exit(f"snell failed with exit code {r.returncode}")
             with open("/tmp/stats.json") as f:
-                secs.append(float(json.load(f)["render_seconds"]))
+                wall = float(json.load(f)["render_seconds"])
+            cpu = (after.children_user + after.children_system) - (before.children_user + before.children_system)
+            secs.append((wall, cpu))
             files.append(pfm)
     finally:
         os.remove(path)
@@ -268,6 +273,7 @@ def mitsuba_efficiency_worker(args, params):
         # A big sample count in chunks (a wavefront of all samples would not fit in memory).
         chunks = max(1, (args.spp + 1023) // 1024)
         t = time.perf_counter()
+        c0 = time.process_time()
         acc = None
         for c in range(chunks):
             spp = args.spp * (c + 1) // chunks - args.spp * c // chunks
@@ -276,7 +282,7 @@ def mitsuba_efficiency_worker(args, params):
             dr.sync_thread()
             a = np.array(img, dtype=np.float64)[:, :, :3] * spp
             acc = a if acc is None else acc + a
-        return time.perf_counter() - t, (acc / args.spp).astype(np.float32)
+        return (time.perf_counter() - t, time.process_time() - c0), (acc / args.spp).astype(np.float32)
 
     one(1000)  # warm-up: kernel compilation, not counted
     secs = []
@@ -327,7 +333,7 @@ def efficiency_scene(args, scene):
     if ref is None:
         ref = snell_images(args, scene, params, "sobol", args.ref_spp, [7777], out + "-ref")
         ref_by = f"Snell sobol, {args.ref_spp} spp"
-    print(f"reference: {ref_by} ({ref[0][0]:.1f} s)")
+    print(f"reference: {ref_by} ({ref[0][0][0]:.1f} s)")
     _, _, ref_px = read_pfm(ref[1][0])
     seeds = list(range(1, args.runs + 1))
     rows = []
@@ -343,10 +349,14 @@ def efficiency_scene(args, scene):
             _, _, px = read_pfm(fpath)
             errs.append(rel_mse(px, ref_px))
             os.remove(fpath)
-        e, t = statistics.mean(errs), statistics.median(secs)
-        row = {"renderer": who, "sampler": sampler, "rel_mse": e, "seconds": t, "efficiency": 1.0 / (e * t)}
+        e = statistics.mean(errs)
+        wall, cpu = statistics.median(s[0] for s in secs), statistics.median(s[1] for s in secs)
+        t = cpu / args.threads if args.cpu_time else wall
+        row = {"renderer": who, "sampler": sampler, "rel_mse": e, "seconds": t, "wall_seconds": wall,
+               "cpu_seconds": cpu, "efficiency": 1.0 / (e * t)}
         rows.append(row)
-        print(f"  {who:<8} {sampler:<12} relMSE {e:.4e}  {t:7.3f} s  efficiency {row['efficiency']:10.1f}")
+        print(f"  {who:<8} {sampler:<12} relMSE {e:.4e}  wall {wall:7.3f} s  cpu {cpu:7.3f} s  "
+              f"efficiency {row['efficiency']:10.1f}")
     os.remove(ref[1][0])
     mits = [r for r in rows if r["renderer"] == "mitsuba"]
     best = max(mits, key=lambda r: r["efficiency"]) if mits else None
@@ -359,7 +369,8 @@ def efficiency_scene(args, scene):
 
 def efficiency(args, scenes):
     results = [efficiency_scene(args, sc) for sc in scenes]
-    print(f"summary: efficiency = 1/(relMSE × seconds), {args.spp} spp, {args.res}², {args.threads} threads; "
+    print(f"summary: efficiency = 1/(relMSE × {'CPU seconds / threads' if args.cpu_time else 'seconds'}), "
+          f"{args.spp} spp, {args.res}², {args.threads} threads; "
           "× = relative to Mitsuba's best sampler on that scene")
     print(f"{'scene':<36} {'renderer':<8} {'sampler':<12} {'relMSE':>10} {'seconds':>8} {'efficiency':>11} {'×':>6}")
     for res in results:
@@ -394,6 +405,8 @@ def main():
     ap.add_argument("--efficiency", action="store_true",
                     help="error per second per sampler (1/(relMSE × seconds)) instead of samples per second")
     ap.add_argument("--ref-spp", type=int, default=16384, help="samples of the --efficiency reference")
+    ap.add_argument("--cpu-time", action="store_true",
+                    help="--efficiency: seconds = CPU time / threads instead of wall time (for a loaded machine)")
     ap.add_argument("--mitsuba-python", help="a Python that imports mitsuba (default: .venv-mitsuba)")
     ap.add_argument("--mitsuba-efficiency-worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--sampler", help=argparse.SUPPRESS)

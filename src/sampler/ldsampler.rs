@@ -21,7 +21,7 @@
 //! shift.
 
 use super::sobol::{sobol0, sobol1};
-use super::{SampleId, dim_seed, hash, permute, uniform, unit};
+use super::{SampleId, dim_hash, mix64, permute, uniform2, unit};
 use glam::Vec2;
 
 /// Mitsuba's rounding: the smallest r² ≥ n with r a power of two ≥ 2.
@@ -51,16 +51,17 @@ impl LdSampler {
         if d >= self.dimension {
             return None;
         }
-        let seed = self.id.pixel_seed;
-        let i = permute(self.id.index, self.id.count, dim_seed(seed, d, 0x1d5a));
-        Some((i as u64, hash(seed ^ 0x48bc_48eb, d as u64)))
+        let h = dim_hash(self.id.pixel_seed, d);
+        let i = permute(self.id.index, self.id.count, h as u32);
+        // The digital shift: 64 more bits of the draw's hash.
+        Some((i as u64, mix64(h)))
     }
 
     #[inline]
     pub fn next_1d(&mut self) -> f32 {
         match self.draw() {
             Some((i, shift)) => unit(sobol0(i) ^ shift as u32),
-            None => uniform(self.id.pixel_seed, self.id.index, self.dim, 0),
+            None => uniform2(self.id.pixel_seed, self.id.index, self.dim).0,
         }
     }
 
@@ -68,7 +69,10 @@ impl LdSampler {
     pub fn next_2d(&mut self) -> Vec2 {
         match self.draw() {
             Some((i, shift)) => Vec2::new(unit(sobol0(i) ^ shift as u32), unit(sobol1(i) ^ (shift >> 32) as u32)),
-            None => Vec2::new(uniform(self.id.pixel_seed, self.id.index, self.dim, 0), uniform(self.id.pixel_seed, self.id.index, self.dim, 1)),
+            None => {
+                let (x, y) = uniform2(self.id.pixel_seed, self.id.index, self.dim);
+                Vec2::new(x, y)
+            }
         }
     }
 }

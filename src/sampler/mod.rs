@@ -257,10 +257,10 @@ pub(crate) fn pixel_seed(seed: u64, x: u32, y: u32) -> u64 {
     mix64(mix64(seed ^ 0x5eed_0000_0000_0000) ^ pixel)
 }
 
-/// A well-mixed hash of two words.
+/// A well-mixed hash of a well-mixed word `a` (a sequence seed) and any `b`.
 #[inline]
 pub(crate) fn hash(a: u64, b: u64) -> u64 {
-    mix64(a ^ mix64(b ^ 0x9e37_79b9_7f4a_7c15).rotate_left(23))
+    mix64(a ^ b.wrapping_mul(0x9e37_79b9_7f4a_7c15))
 }
 
 /// A 32-bit fixed-point fraction as a float in [0, 1) (24 bits, never 1.0).
@@ -269,12 +269,19 @@ pub(crate) fn unit(bits: u32) -> f32 {
     (bits >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
-/// A uniform number for (sequence, index, dimension, axis), for jitter and
-/// for dimensions past a pattern's end.
+/// Two uniform numbers for (sequence, index, dimension), for jitter and for
+/// dimensions past a pattern's end.
 #[inline]
-pub(crate) fn uniform(pixel_seed: u64, index: u32, dim: u32, axis: u32) -> f32 {
-    let key = ((index as u64) << 32) | ((dim as u64) << 2) | axis as u64;
-    unit((hash(pixel_seed ^ 0x6a09_e667_f3bc_c909, key) >> 32) as u32)
+pub(crate) fn uniform2(pixel_seed: u64, index: u32, dim: u32) -> (f32, f32) {
+    let key = ((index as u64) << 32) | dim as u64;
+    let h = hash(pixel_seed ^ 0x6a09_e667_f3bc_c909, key);
+    (unit(h as u32), unit((h >> 32) as u32))
+}
+
+/// One uniform number for (sequence, index, dimension).
+#[inline]
+pub(crate) fn uniform(pixel_seed: u64, index: u32, dim: u32) -> f32 {
+    uniform2(pixel_seed, index, dim).0
 }
 
 /// Element `i` of a pseudo-random permutation of [0, n) chosen by `seed`
@@ -317,10 +324,10 @@ pub(crate) fn permute(mut i: u32, n: u32, seed: u32) -> u32 {
     ((i as u64 + p as u64) % n as u64) as u32
 }
 
-/// The 32-bit seed of dimension `dim` of a sequence, for `permute`.
+/// 64 random bits for dimension `dim` of a sequence (permutation seeds).
 #[inline]
-pub(crate) fn dim_seed(pixel_seed: u64, dim: u32, salt: u64) -> u32 {
-    (hash(pixel_seed ^ salt, dim as u64) >> 32) as u32
+pub(crate) fn dim_hash(pixel_seed: u64, dim: u32) -> u64 {
+    hash(pixel_seed, dim as u64)
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@
 //! the points from clumping). 1-D draws are stratified on all n strata.
 //! π, σ, τ are chosen afresh for every draw.
 
-use super::{ONE_MINUS_EPSILON, SampleId, dim_seed, permute, uniform};
+use super::{ONE_MINUS_EPSILON, SampleId, dim_hash, permute, uniform2};
 use glam::Vec2;
 
 /// Mitsuba's rounding: r1 = ⌊∛n⌋, r0 = ⌈n / r1²⌉, count r0·r1².
@@ -62,28 +62,30 @@ impl Multijitter {
         Multijitter { id, cols, rows, jitter, dim: 0 }
     }
 
-    fn offset(&self, axis: u32) -> f32 {
-        if self.jitter { uniform(self.id.pixel_seed, self.id.index, self.dim, axis) } else { 0.5 }
+    fn offset(&self) -> (f32, f32) {
+        if self.jitter { uniform2(self.id.pixel_seed, self.id.index, self.dim) } else { (0.5, 0.5) }
     }
 
     #[inline]
     pub fn next_1d(&mut self) -> f32 {
-        let s = permute(self.id.index, self.id.count, dim_seed(self.id.pixel_seed, self.dim, 0x45fb_e943));
-        let v = ((s as f32 + self.offset(0)) / self.id.count as f32).min(ONE_MINUS_EPSILON);
+        let s = permute(self.id.index, self.id.count, dim_hash(self.id.pixel_seed, self.dim) as u32);
+        let v = ((s as f32 + self.offset().0) / self.id.count as f32).min(ONE_MINUS_EPSILON);
         self.dim += 1;
         v
     }
 
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
-        let seed = self.id.pixel_seed;
-        let s = permute(self.id.index, self.id.count, dim_seed(seed, self.dim, 0x5163_3e2d));
+        // Three permutation seeds from one hash of the draw.
+        let h = dim_hash(self.id.pixel_seed, self.dim);
+        let s = permute(self.id.index, self.id.count, h as u32);
         let (m, k) = (self.cols, self.rows);
         let (cx, cy) = (s % m, s / m);
-        let sx = permute(cy, k, dim_seed(seed, self.dim, 0x68bc_21eb));
-        let sy = permute(cx, m, dim_seed(seed, self.dim, 0x02e5_be93));
-        let x = (cx as f32 + (sx as f32 + self.offset(0)) / k as f32) / m as f32;
-        let y = (cy as f32 + (sy as f32 + self.offset(1)) / m as f32) / k as f32;
+        let sx = permute(cy, k, (h >> 32) as u32);
+        let sy = permute(cx, m, ((h >> 16) as u32).wrapping_mul(0x68bc_21eb));
+        let (jx, jy) = self.offset();
+        let x = (cx as f32 + (sx as f32 + jx) / k as f32) / m as f32;
+        let y = (cy as f32 + (sy as f32 + jy) / m as f32) / k as f32;
         self.dim += 1;
         Vec2::new(x.min(ONE_MINUS_EPSILON), y.min(ONE_MINUS_EPSILON))
     }

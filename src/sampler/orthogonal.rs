@@ -26,7 +26,7 @@
 //! (padding). Unlike Mitsuba, every draw (also a 2-D one) takes columns, and
 //! for strength > 2 the count is p^t (Mitsuba keeps p²).
 
-use super::{ONE_MINUS_EPSILON, SampleId, dim_seed, permute, uniform};
+use super::{ONE_MINUS_EPSILON, SampleId, dim_hash, permute, uniform};
 use glam::Vec2;
 
 /// The strengths the loader accepts.
@@ -76,10 +76,10 @@ impl Orthogonal {
         let n = p.pow(self.strength);
         if self.id.count != n {
             // A sample count set past the loader that is not p^t: no array.
-            return uniform(seed, self.id.index, c, 0);
+            return uniform(seed, self.id.index, c);
         }
         let (array, column) = (c / p, c % p);
-        let i = permute(self.id.index, n, dim_seed(seed, array, 0x0a77_a7));
+        let i = permute(self.id.index, n, (dim_hash(seed ^ 0x0a77_a700, array) >> 32) as u32);
         // Horner's rule over the digits, most significant first.
         let mut symbol = 0u64;
         for l in (0..self.strength).rev() {
@@ -87,9 +87,10 @@ impl Orthogonal {
             symbol = (symbol * column as u64 + digit as u64) % p as u64;
         }
         let sub_n = n / p;
-        let stratum = permute(symbol as u32, p, dim_seed(seed, c, 0x5163_3e2d));
-        let sub = permute(i / p, sub_n, dim_seed(seed, c, 0x68bc_21eb));
-        let j = if self.jitter { uniform(seed, self.id.index, c, 1) } else { 0.5 };
+        let h = dim_hash(seed, c);
+        let stratum = permute(symbol as u32, p, h as u32);
+        let sub = permute(i / p, sub_n, (h >> 32) as u32);
+        let j = if self.jitter { uniform(seed, self.id.index, c) } else { 0.5 };
         ((stratum as f32 + (sub as f32 + j) / sub_n as f32) / p as f32).min(ONE_MINUS_EPSILON)
     }
 

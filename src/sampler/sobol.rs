@@ -21,7 +21,8 @@
 //! points while keeping the net. Every dimension is supported this way; a
 //! 1-D draw is the scrambled van der Corput point.
 
-use super::{SampleId, dim_seed, hash, permute, unit};
+use super::{SampleId, dim_hash, permute, unit};
+use crate::math::rng::mix64;
 use glam::Vec2;
 
 /// Columns of the generator matrix of Sobol dimension 1 (dimension 0 is the
@@ -88,11 +89,12 @@ impl Sobol {
     /// The permuted index of this draw and its two scramble seeds.
     #[inline]
     fn draw(&mut self) -> (u64, u32, u32) {
-        let seed = self.id.pixel_seed;
-        let i = permute(self.id.index, self.id.count, dim_seed(seed, self.dim, 0x50b0));
-        let h = hash(seed ^ 0x0e3e, self.dim as u64);
+        // The permutation seed and two scramble seeds from the draw's hash.
+        let h = dim_hash(self.id.pixel_seed, self.dim);
+        let i = permute(self.id.index, self.id.count, h as u32);
+        let g = mix64(h);
         self.dim += 1;
-        (i as u64, h as u32, (h >> 32) as u32)
+        (i as u64, g as u32, (g >> 32) as u32)
     }
 
     #[inline]

@@ -20,7 +20,7 @@
 //! pixel's samples chosen afresh for each draw (so the dimensions are not
 //! correlated with each other).
 
-use super::{SampleId, dim_seed, permute, uniform};
+use super::{SampleId, dim_hash, permute, uniform2};
 use glam::Vec2;
 
 /// `n` rounded up to a square (Mitsuba's rule).
@@ -54,18 +54,18 @@ impl Stratified {
         Stratified { id, res: resolution(id.count), jitter, dimension, dim: 0 }
     }
 
-    fn offset(&self, axis: u32) -> f32 {
-        if self.jitter { uniform(self.id.pixel_seed, self.id.index, self.dim, axis) } else { 0.5 }
+    fn offset(&self) -> (f32, f32) {
+        if self.jitter { uniform2(self.id.pixel_seed, self.id.index, self.dim) } else { (0.5, 0.5) }
     }
 
     #[inline]
     pub fn next_1d(&mut self) -> f32 {
         let d = self.dim;
         let v = if d >= self.dimension {
-            uniform(self.id.pixel_seed, self.id.index, d, 3)
+            uniform2(self.id.pixel_seed, self.id.index, d).0
         } else {
-            let s = permute(self.id.index, self.id.count, dim_seed(self.id.pixel_seed, d, 0x57a7));
-            ((s as f32 + self.offset(0)) / self.id.count as f32).min(super::ONE_MINUS_EPSILON)
+            let s = permute(self.id.index, self.id.count, dim_hash(self.id.pixel_seed, d) as u32);
+            ((s as f32 + self.offset().0) / self.id.count as f32).min(super::ONE_MINUS_EPSILON)
         };
         self.dim += 1;
         v
@@ -75,16 +75,18 @@ impl Stratified {
     pub fn next_2d(&mut self) -> Vec2 {
         let d = self.dim;
         let v = if d >= self.dimension {
-            Vec2::new(uniform(self.id.pixel_seed, self.id.index, d, 2), uniform(self.id.pixel_seed, self.id.index, d, 3))
+            let (x, y) = uniform2(self.id.pixel_seed, self.id.index, d);
+            Vec2::new(x, y)
         } else {
             // Cells of the r × r grid; with a count that is not a square (a
             // sample count set past the loader) the last row is partial.
-            let s = permute(self.id.index, self.id.count, dim_seed(self.id.pixel_seed, d, 0x57a7));
+            let s = permute(self.id.index, self.id.count, dim_hash(self.id.pixel_seed, d) as u32);
             let (cx, cy) = (s % self.res, s / self.res);
             let rows = self.id.count.div_ceil(self.res);
+            let (jx, jy) = self.offset();
             Vec2::new(
-                ((cx as f32 + self.offset(0)) / self.res as f32).min(super::ONE_MINUS_EPSILON),
-                ((cy as f32 + self.offset(1)) / rows as f32).min(super::ONE_MINUS_EPSILON),
+                ((cx as f32 + jx) / self.res as f32).min(super::ONE_MINUS_EPSILON),
+                ((cy as f32 + jy) / rows as f32).min(super::ONE_MINUS_EPSILON),
             )
         };
         self.dim += 1;

@@ -99,7 +99,8 @@ impl ZSobol {
             let shift = odd + 2 * k;
             let digit = (self.morton_index >> shift) & 3;
             let higher = self.morton_index >> (shift + 2);
-            let p = (mix64(higher ^ salt) >> 40) % 24;
+            // Multiplicative hashing: the top bits depend on all of the input.
+            let p = (((higher ^ salt).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 32) * 24) >> 32;
             out |= (PERMUTATIONS[p as usize][digit as usize] as u64) << shift;
         }
         if odd == 1 {
