@@ -13,9 +13,10 @@
 //! | `sobol` | [`sobol`] | Owen-scrambled Sobol (0,2)-sequence, padded per dimension (Snell's own) |
 //! | `zsobol` | [`zsobol`] | `sobol` with Morton-ordered sample indices: error spread as blue noise (Snell's own) |
 //!
-//! Which to use: `zsobol` or `sobol` (power-of-two sample counts) for the
-//! least error per second; `independent` stays the default for scenes that
-//! name none, as in Mitsuba.
+//! Which to use: `multijitter` or `sobol` (power-of-two sample counts) cut
+//! the error of directly and diffusely lit scenes most per sample; `zsobol`
+//! gives the same per-pixel error spread as blue noise; `independent` stays
+//! the default for scenes that name none, as in Mitsuba.
 //!
 //! Samples are addressable: [`Sampler::start`] gives the sampler of sample
 //! `index` of pixel (x, y), and every number it draws is a pure function of
