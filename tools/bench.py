@@ -30,11 +30,25 @@ render-time memory does not depend on the mesh). Load CPU seconds (user + system
 all threads) are less disturbed by a busy machine than wall seconds: Snell's from a
 second run at 16², 1 spp, Mitsuba's around load_file. Prints the CPU's SIMD width.
 
+--efficiency measures error per second instead: for each scene it renders a
+high-spp reference (--ref-spp, Mitsuba llvm_ad_rgb independent if Mitsuba is
+there, else Snell's sobol), then renders --runs images per sampler (seeds
+1..runs) at --spp with Snell's independent, multijitter, sobol and zsobol and
+Mitsuba's independent, multijitter and ldsampler, in the same run, and prints
+  efficiency = 1 / (relMSE × render seconds),
+relMSE = mean over pixels and channels of (x − ref)² / (ref² + 0.01), averaged
+over the runs; seconds the median render time (Snell: render_seconds of
+--stats; Mitsuba: mi.render + dr.eval, after a warm-up render that compiles the
+kernels; --cpu-time: their CPU time / threads, fairer on a loaded machine).
+Defaults there: 128², 64 spp, reference 16384 spp.
+
 Usage: python3 tools/bench.py [--runs 3] [--scene scenes/cornell-box.xml]...
            [--spp 256] [--res 512] [--threads 2] [-D key=value ...]
            [--snell target/release/snell] [--no-snell] [--no-mitsuba] [--json out.json]
+       python3 tools/bench.py --efficiency [--spp 64] [--res 128] [--ref-spp 16384] ...
 """
 import argparse
+import array
 import json
 import os
 import re
@@ -409,6 +423,201 @@ def bench_scene(args):
     return res
 
 
+# ------------------------------------------------------------------------ efficiency
+
+SNELL_SAMPLERS = ["independent", "multijitter", "sobol", "zsobol"]
+MITSUBA_SAMPLERS = ["independent", "multijitter", "ldsampler"]
+
+
+def read_pfm(path):
+    """(width, height, flat list of RGB floats, top row first) of a PF file."""
+    with open(path, "rb") as f:
+        data = f.read()
+    parts = data.split(b"\n", 3)
+    if parts[0] != b"PF":
+        raise ValueError(f"{path}: not an RGB PFM")
+    w, h = map(int, parts[1].split())
+    scale = float(parts[2])
+    px = array.array("f")
+    px.frombytes(parts[3][:w * h * 12])
+    if scale > 0:
+        px.byteswap()
+    rows = [px[(h - 1 - y) * w * 3:(h - y) * w * 3] for y in range(h)]
+    return w, h, [v for r in rows for v in r]
+
+
+def rel_mse(img, ref):
+    return sum((a - r) ** 2 / (r * r + 1e-2) for a, r in zip(img, ref)) / len(ref)
+
+
+def scene_with_sampler(scene, sampler):
+    """A copy of `scene` (beside it, so relative paths hold) naming `sampler`."""
+    text = open(scene).read()
+    new, n = re.subn(r'<sampler\s+type="[a-z]+"', f'<sampler type="{sampler}"', text, count=1)
+    if n != 1:
+        sys.exit(f"{scene}: no <sampler type=...> to replace")
+    path = os.path.join(os.path.dirname(scene), f".bench-{sampler}-{os.path.basename(scene)}")
+    with open(path, "w") as f:
+        f.write(new)
+    return path
+
+
+def snell_images(args, scene, params, sampler, spp, seeds, out):
+    """Renders `scene` with Snell's `sampler` once per seed; returns (seconds, [pfm paths])."""
+    path = scene_with_sampler(scene, sampler)
+    secs, files = [], []
+    try:
+        for seed in seeds:
+            pfm = f"{out}-snell-{sampler}-{seed}.pfm"
+            cmd = [args.snell, "render", path, "-o", pfm, "--spp", str(spp), "--seed", str(seed),
+                   "--threads", str(args.threads), "--stats", "/tmp/stats.json"]
+            for k, v in params.items():
+                cmd += ["-D", f"{k}={v}"]
+            before = os.times()
+            r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+            after = os.times()
+            if r.returncode != 0:
+                print(r.stdout)
+                sys.exit(f"snell failed with exit code {r.returncode}")
+            with open("/tmp/stats.json") as f:
+                wall = float(json.load(f)["render_seconds"])
+            cpu = (after.children_user + after.children_system) - (before.children_user + before.children_system)
+            secs.append((wall, cpu))
+            files.append(pfm)
+    finally:
+        os.remove(path)
+    return secs, files
+
+
+def mitsuba_efficiency_worker(args, params):
+    """Runs inside a Python that has mitsuba: renders --sampler at --spp for
+    each seed of --seeds, writes <out>-<seed>.pfm; prints the seconds as JSON."""
+    os.environ.setdefault("DRJIT_LIBLLVM_PATH", LLVM_LIB)
+    import drjit as dr
+    import mitsuba as mi
+    import numpy as np
+
+    mi.set_variant("llvm_ad_rgb")
+    dr.set_thread_count(args.threads)
+    path = scene_with_sampler(args.scene, args.sampler)
+    try:
+        scene = mi.load_file(path, **params)
+    finally:
+        os.remove(path)
+
+    def one(seed):
+        # A big sample count in chunks (a wavefront of all samples would not fit in memory).
+        chunks = max(1, (args.spp + 1023) // 1024)
+        t = time.perf_counter()
+        c0 = time.process_time()
+        acc = None
+        for c in range(chunks):
+            spp = args.spp * (c + 1) // chunks - args.spp * c // chunks
+            img = mi.render(scene, spp=spp, seed=seed * 65537 + c)
+            dr.eval(img)
+            dr.sync_thread()
+            a = np.array(img, dtype=np.float64)[:, :, :3] * spp
+            acc = a if acc is None else acc + a
+        return (time.perf_counter() - t, time.process_time() - c0), (acc / args.spp).astype(np.float32)
+
+    one(1000)  # warm-up: kernel compilation, not counted
+    secs = []
+    for seed in [int(s) for s in args.seeds.split(",")]:
+        t, img = one(seed)
+        secs.append(t)
+        h, w, _ = img.shape
+        with open(f"{args.out}-{seed}.pfm", "wb") as f:
+            f.write(f"PF\n{w} {h}\n-1.0\n".encode())
+            f.write(np.ascontiguousarray(img[::-1], dtype="<f4").tobytes())
+    print(json.dumps({"seconds": secs, "mitsuba": mi.__version__}))
+
+
+def mitsuba_images(args, scene, sampler, spp, seeds, out):
+    py = args.mitsuba_python or (VENV_PY if os.path.exists(VENV_PY) else None)
+    if py is None:
+        try:
+            import mitsuba  # noqa: F401
+            py = sys.executable
+        except ImportError:
+            pass
+    if py is None or args.no_mitsuba:
+        if not args.no_mitsuba:
+            print("mitsuba: not importable and no .venv-mitsuba (tools/setup-mitsuba.sh, or --mitsuba-python); skipping")
+        return None
+    env = dict(os.environ)
+    env.setdefault("DRJIT_LIBLLVM_PATH", LLVM_LIB)
+    argv = ["--mitsuba-efficiency-worker", "--scene", scene, "--spp", str(spp), "--res", str(args.res),
+            "--max-depth", str(args.max_depth), "--threads", str(args.threads), "--sampler", sampler,
+            "--seeds", ",".join(map(str, seeds)), "--out", f"{out}-mitsuba-{sampler}"]
+    for kv in args.defines:
+        argv += ["-D", kv]
+    r = subprocess.run([py, os.path.abspath(__file__)] + argv, cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
+    if r.returncode != 0:
+        print(f"mitsuba {sampler}: worker failed (exit {r.returncode}); skipping")
+        return None
+    secs = json.loads(r.stdout.strip().splitlines()[-1])["seconds"]
+    return secs, [f"{out}-mitsuba-{sampler}-{s}.pfm" for s in seeds]
+
+
+def efficiency_scene(args, scene):
+    params = scene_params(scene, args.res, args.max_depth, args.defines)
+    rel = os.path.relpath(scene, ROOT)
+    out = os.path.join("/tmp", "snell-eff-" + os.path.splitext(os.path.basename(scene))[0])
+    print(f"== {rel}: {args.res}², {args.spp} spp, {args.runs} runs, {params}, {args.threads} threads")
+    ref = mitsuba_images(args, scene, "independent", args.ref_spp, [7777], out + "-ref")
+    ref_by = f"Mitsuba llvm_ad_rgb independent, {args.ref_spp} spp"
+    if ref is None:
+        ref = snell_images(args, scene, params, "sobol", args.ref_spp, [7777], out + "-ref")
+        ref_by = f"Snell sobol, {args.ref_spp} spp"
+    print(f"reference: {ref_by} ({ref[0][0][0]:.1f} s)")
+    _, _, ref_px = read_pfm(ref[1][0])
+    seeds = list(range(1, args.runs + 1))
+    rows = []
+    jobs = [("snell", s) for s in ([] if args.no_snell else SNELL_SAMPLERS)] + [("mitsuba", s) for s in MITSUBA_SAMPLERS]
+    for who, sampler in jobs:
+        got = (snell_images(args, scene, params, sampler, args.spp, seeds, out) if who == "snell"
+               else mitsuba_images(args, scene, sampler, args.spp, seeds, out))
+        if got is None:
+            continue
+        secs, files = got
+        errs = []
+        for fpath in files:
+            _, _, px = read_pfm(fpath)
+            errs.append(rel_mse(px, ref_px))
+            os.remove(fpath)
+        e = statistics.mean(errs)
+        wall, cpu = statistics.median(s[0] for s in secs), statistics.median(s[1] for s in secs)
+        t = cpu / args.threads if args.cpu_time else wall
+        row = {"renderer": who, "sampler": sampler, "rel_mse": e, "seconds": t, "wall_seconds": wall,
+               "cpu_seconds": cpu, "efficiency": 1.0 / (e * t)}
+        rows.append(row)
+        print(f"  {who:<8} {sampler:<12} relMSE {e:.4e}  wall {wall:7.3f} s  cpu {cpu:7.3f} s  "
+              f"efficiency {row['efficiency']:10.1f}")
+    os.remove(ref[1][0])
+    mits = [r for r in rows if r["renderer"] == "mitsuba"]
+    best = max(mits, key=lambda r: r["efficiency"]) if mits else None
+    if best:
+        for r in rows:
+            r["vs_mitsuba_best"] = r["efficiency"] / best["efficiency"]
+    return {"scene": rel, "spp": args.spp, "res": args.res, "reference": ref_by, "rows": rows,
+            "mitsuba_best": best["sampler"] if best else None}
+
+
+def efficiency(args, scenes):
+    results = [efficiency_scene(args, sc) for sc in scenes]
+    print(f"summary: efficiency = 1/(relMSE × {'CPU seconds / threads' if args.cpu_time else 'seconds'}), "
+          f"{args.spp} spp, {args.res}², {args.threads} threads; "
+          "× = relative to Mitsuba's best sampler on that scene")
+    print(f"{'scene':<36} {'renderer':<8} {'sampler':<12} {'relMSE':>10} {'seconds':>8} {'efficiency':>11} {'×':>6}")
+    for res in results:
+        for r in res["rows"]:
+            print(f"{res['scene']:<36} {r['renderer']:<8} {r['sampler']:<12} {r['rel_mse']:10.3e} "
+                  f"{r['seconds']:8.3f} {r['efficiency']:11.1f} {r.get('vs_mitsuba_best', float('nan')):6.2f}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(results, f, indent=2)
+
+
 def main():
     sys.stdout.reconfigure(line_buffering=True)  # keep order with the worker's stderr
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -433,10 +642,18 @@ def main():
                     help="mesh benchmark instead of scenes: triangle counts, e.g. 1M,4M")
     ap.add_argument("--mesh-formats", default="ply,obj", help="mesh files to load: ply, obj or both")
     ap.add_argument("--mesh-res", type=int, default=512)
-    ap.add_argument("--mitsuba-python", help="a Python with mitsuba for the mesh benchmark "
-                    "(default: this one, or .venv-mitsuba)")
     ap.add_argument("--mesh-spp", type=int, default=16)
     ap.add_argument("--mitsuba-mesh-worker", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--efficiency", action="store_true",
+                    help="error per second per sampler (1/(relMSE × seconds)) instead of samples per second")
+    ap.add_argument("--ref-spp", type=int, default=16384, help="samples of the --efficiency reference")
+    ap.add_argument("--cpu-time", action="store_true",
+                    help="--efficiency: seconds = CPU time / threads instead of wall time (for a loaded machine)")
+    ap.add_argument("--mitsuba-python", help="a Python that imports mitsuba, for --mesh and --efficiency (default: .venv-mitsuba)")
+    ap.add_argument("--mitsuba-efficiency-worker", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--sampler", help=argparse.SUPPRESS)
+    ap.add_argument("--seeds", help=argparse.SUPPRESS)
+    ap.add_argument("--out", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.mitsuba_mesh_worker:
         mitsuba_mesh_worker(args)
@@ -447,6 +664,12 @@ def main():
             with open(args.json, "w") as f:
                 json.dump(rows, f, indent=2)
         return
+    if args.efficiency or args.mitsuba_efficiency_worker:
+        # Error per second needs fewer pixels and samples than throughput.
+        if "--res" not in sys.argv:
+            args.res = 128
+        if "--spp" not in sys.argv:
+            args.spp = 64
     scenes = [os.path.join(ROOT, sc) if not os.path.isabs(sc) else sc
               for sc in (args.scene or DEFAULT_SCENES)]
     missing = [sc for sc in scenes if not os.path.isfile(sc)]
@@ -456,6 +679,13 @@ def main():
     if args.mitsuba_worker:
         args.scene = scenes[0]
         mitsuba_worker(args, scene_params(args.scene, args.res, args.max_depth, args.defines))
+        return
+    if args.mitsuba_efficiency_worker:
+        args.scene = scenes[0]
+        mitsuba_efficiency_worker(args, scene_params(args.scene, args.res, args.max_depth, args.defines))
+        return
+    if args.efficiency:
+        efficiency(args, scenes)
         return
 
     modes = [m.strip() for m in args.modes.split(",") if m.strip()]

@@ -43,7 +43,7 @@ pub const EMITTERS: [&str; 7] = ["area", "point", "spot", "constant", "direction
 pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
-pub const SAMPLERS: [&str; 1] = ["independent"];
+pub const SAMPLERS: [&str; 7] = crate::sampler::NAMES;
 pub const INTEGRATORS: [&str; 6] = ["direct", "path", "ptracer", "stokes", "aov", "moment"];
 
 /// The most samples per pixel, from the scene or from `--spp` (Mitsuba's
@@ -351,7 +351,7 @@ impl Loader {
             if !(1..=MAX_SPP).contains(&spp) {
                 return Err(SceneError::file(&root.loc.file.path, format!("the sample count {spp} is not between 1 and {MAX_SPP} (2^24)")));
             }
-            sampler.sample_count = spp;
+            sampler.set_sample_count(spp);
         }
         if let Some(seed) = options.seed {
             sampler.seed = seed;
@@ -925,8 +925,10 @@ impl Loader {
         };
         let sampler = match samplers.first() {
             Some(s) => self.sampler(s)?,
-            None => SamplerSpec { sample_count: 4, seed: 0 },
+            None => SamplerSpec::default(),
         };
+        let mut sampler = sampler;
+        sampler.fit_film(film.width, film.height);
         let aspect = film.width as f32 / film.height as f32;
         let to_world = props.transform("to_world")?;
         let near_clip = props.float_checked("near_clip", 0.01, |v| v >= 0.0, "non-negative")?;
@@ -1021,10 +1023,9 @@ impl Loader {
             return Err(unknown_plugin(node, &SAMPLERS));
         }
         let props = Props::new(node);
-        let sample_count = props.int_checked("sample_count", 4, |v| (1..=1 << 24).contains(&v), "between 1 and 16777216")? as u32;
-        let seed = props.int_checked("seed", 0, |v| v >= 0, "non-negative")? as u64;
+        let spec = SamplerSpec::from_props(&node.plugin, &props)?;
         props.finish()?;
-        Ok(SamplerSpec { sample_count, seed })
+        Ok(spec)
     }
 
     /// A path depth: -1 is unlimited; values from 2^32 − 1 up are treated as

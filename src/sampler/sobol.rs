@@ -1,0 +1,173 @@
+//! `sobol` — Owen-scrambled Sobol points, padded per dimension (Snell's own;
+//! the design of pbrt-v4's `PaddedSobolSampler` with Burley's hash-based
+//! Owen scrambling, "Practical Hash-based Owen Scrambling", JCGT 2020).
+//!
+//! | parameter | type | default | meaning |
+//! |---|---|---|---|
+//! | `sample_count` | integer | 4 | samples per pixel; powers of two give the full net property |
+//! | `seed` | integer | 0 | seed |
+//!
+//! ```xml
+//! <sampler type="sobol">
+//!     <integer name="sample_count" value="64"/>
+//! </sampler>
+//! ```
+//!
+//! Every draw takes the first two dimensions of the Sobol sequence — a
+//! (0,2)-sequence, so the pixel's 2^m samples of each 2-D draw form a
+//! (0,m,2)-net: every elementary interval of area 2^−m holds one point. The
+//! draw's own random permutation of the pixel's samples (the padding)
+//! decorrelates the draws; an Owen scramble per draw and pixel randomizes the
+//! points while keeping the net. Every dimension is supported this way; a
+//! 1-D draw is the scrambled van der Corput point.
+
+use super::{SampleId, dim_hash, permute, unit};
+use crate::math::rng::mix64;
+use glam::Vec2;
+
+/// Columns of the generator matrix of Sobol dimension 1 (dimension 0 is the
+/// identity: the bit-reversed index). From the degree-1 primitive polynomial
+/// x + 1 with m₁ = 1: v₀ = 2³¹, v_k = v_{k−1} ⊕ (v_{k−1} ≫ 1) — the Pascal
+/// matrix mod 2, truncated to 32 bits of precision (64 columns, for 64-bit
+/// indices).
+pub(crate) const SOBOL1: [u32; 64] = {
+    let mut v = [0u32; 64];
+    v[0] = 1 << 31;
+    let mut k = 1;
+    while k < 64 {
+        v[k] = v[k - 1] ^ (v[k - 1] >> 1);
+        k += 1;
+    }
+    v
+};
+
+/// Sobol dimension 0 of `index` as 32 fraction bits.
+#[inline]
+pub(crate) fn sobol0(index: u64) -> u32 {
+    (index as u32).reverse_bits()
+}
+
+/// Sobol dimension 1 of `index` as 32 fraction bits.
+#[inline]
+pub(crate) fn sobol1(mut index: u64) -> u32 {
+    let mut v = 0;
+    let mut k = 0;
+    while index != 0 {
+        if index & 1 != 0 {
+            v ^= SOBOL1[k];
+        }
+        index >>= 1;
+        k += 1;
+    }
+    v
+}
+
+/// Owen scrambling of 32 fraction bits by a hash (Burley 2020, with the
+/// Laine–Karras style hash on the reversed bits: each output bit is flipped
+/// by a function of the seed and the bits above it only).
+#[inline]
+pub(crate) fn owen_scramble(x: u32, seed: u32) -> u32 {
+    let mut v = x.reverse_bits();
+    v = v.wrapping_add(seed);
+    v ^= v.wrapping_mul(0x6c50_b47c);
+    v ^= v.wrapping_mul(0xb82f_1e52);
+    v ^= v.wrapping_mul(0xc7af_e638);
+    v ^= v.wrapping_mul(0x8d22_f6e6);
+    v.reverse_bits()
+}
+
+pub(crate) struct Sobol {
+    id: SampleId,
+    dim: u32,
+}
+
+impl Sobol {
+    pub fn start(id: SampleId) -> Sobol {
+        Sobol { id, dim: 0 }
+    }
+
+    /// The permuted index of this draw and its two scramble seeds.
+    #[inline]
+    fn draw(&mut self) -> (u64, u32, u32) {
+        // The permutation seed and two scramble seeds from the draw's hash.
+        let h = dim_hash(self.id.pixel_seed, self.dim);
+        let i = permute(self.id.index, self.id.count, h as u32);
+        let g = mix64(h);
+        self.dim += 1;
+        (i as u64, g as u32, (g >> 32) as u32)
+    }
+
+    #[inline]
+    pub fn next_1d(&mut self) -> f32 {
+        let (i, a, _) = self.draw();
+        unit(owen_scramble(sobol0(i), a))
+    }
+
+    #[inline]
+    pub fn next_2d(&mut self) -> Vec2 {
+        let (i, a, b) = self.draw();
+        Vec2::new(unit(owen_scramble(sobol0(i), a)), unit(owen_scramble(sobol1(i), b)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::testing::*;
+    use super::super::*;
+    use super::*;
+
+    #[test]
+    fn the_unscrambled_sequence_is_sobol() {
+        // The first points of Sobol's sequence in dimensions 0 and 1.
+        let expect = [(0.0, 0.0), (0.5, 0.5), (0.25, 0.75), (0.75, 0.25), (0.125, 0.625), (0.625, 0.125)];
+        for (i, (x, y)) in expect.into_iter().enumerate() {
+            assert_eq!((unit(sobol0(i as u64)), unit(sobol1(i as u64))), (x, y), "index {i}");
+        }
+        for m in 1..=10 {
+            let pts: Vec<Vec2> = (0..1u64 << m).map(|i| Vec2::new(unit(sobol0(i)), unit(sobol1(i)))).collect();
+            assert_net(&pts, "Sobol");
+        }
+    }
+
+    #[test]
+    fn owen_scrambling_keeps_every_net() {
+        for seed in [1u32, 0xdead_beef, 77] {
+            for m in [2, 5, 8] {
+                let pts: Vec<Vec2> = (0..1u64 << m)
+                    .map(|i| Vec2::new(unit(owen_scramble(sobol0(i), seed)), unit(owen_scramble(sobol1(i), !seed))))
+                    .collect();
+                assert_net(&pts, "scrambled Sobol");
+            }
+        }
+        // And changes the points.
+        assert_ne!(owen_scramble(sobol0(3), 1), sobol0(3));
+    }
+
+    #[test]
+    fn every_draw_of_a_pixel_is_a_net() {
+        for n in [4, 16, 64, 256] {
+            let spec = spec(SamplerKind::Sobol, n, 21);
+            for pattern in [&[][..], &[false, true], &[true, true, false, true]] {
+                for pixel in 0..3 {
+                    assert_net(&points(&spec, pixel, 0, pattern, true), "sobol 2-D draw");
+                    assert_cells(&points(&spec, pixel, 0, pattern, false), n, 1, 1, "sobol 1-D draw");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_sample_is_a_function_of_seed_pixel_and_index() {
+        assert_addressable(SamplerKind::Sobol);
+    }
+
+    #[test]
+    fn converges_to_the_integral() {
+        assert_unbiased(SamplerKind::Sobol);
+    }
+
+    #[test]
+    fn discrepancy_below_independent() {
+        assert_below_independent(SamplerKind::Sobol, 64);
+    }
+}
