@@ -426,7 +426,8 @@ fn render(
                     let mut scene = scene.lock();
                     let saved = (scene.sampler.sample_count, scene.sampler.seed);
                     if let Some(n) = spp {
-                        scene.sampler.sample_count = n;
+                        // Rounded as the sampler rounds it (as --spp is).
+                        scene.sampler.set_sample_count(n);
                     }
                     if let Some(seed) = seed {
                         scene.sampler.seed = seed;
