@@ -193,7 +193,8 @@ pub struct PassReport<'a> {
 /// `spp`-sample render: growing passes (doubling) whose last ends at `spp`.
 pub fn pass_schedule(spp: u32, passes: u32) -> Vec<u32> {
     let passes = passes.clamp(1, spp.max(1));
-    let mut ends: Vec<u32> = (1..=passes).map(|k| ((spp as u64) >> (passes - k)) as u32).collect();
+    // checked_shr: a shift of 64 or more (thousands of passes) is 0, not wrapped.
+    let mut ends: Vec<u32> = (1..=passes).map(|k| (spp as u64).checked_shr(passes - k).unwrap_or(0) as u32).collect();
     // Small renders: make each pass take at least one sample.
     for k in 0..ends.len() {
         let least = k as u32 + 1;
@@ -558,8 +559,8 @@ mod tests {
         assert_eq!(pass_schedule(256, 1), vec![256]);
         assert_eq!(pass_schedule(256, 0), vec![256]);
         assert_eq!(pass_schedule(256, 4), vec![32, 64, 128, 256]);
-        for spp in 1..40 {
-            for passes in 0..12 {
+        for spp in (1..40).chain([2000, 16000, 1 << 24]) {
+            for passes in (0..12).chain([63, 64, 65, 100, 2000, 5000]) {
                 let s = pass_schedule(spp, passes);
                 assert_eq!(*s.last().unwrap(), spp);
                 assert!(s.windows(2).all(|w| w[0] < w[1]), "{spp} {passes}: {s:?}");
