@@ -486,6 +486,76 @@ fn render(
     })
 }
 
+/// Renders samples [`start`, `end`) of every pixel of `scene` in `mode` and
+/// returns their exact film state (`snell::FilmState::to_bytes`): the unit
+/// of work of a distributed render. States of disjoint ranges merge exactly
+/// ([`state_merge`]), so any split of the samples over tasks and machines
+/// gives the image of one render, bit for bit. The GIL is released.
+#[pyfunction]
+#[pyo3(signature = (scene, mode, start, end, threads=0))]
+fn render_samples(py: Python<'_>, scene: &NativeScene, mode: &str, start: u32, end: u32, threads: usize) -> PyResult<Py<PyBytes>> {
+    guarded(|| {
+        let mode = parse_mode(mode)?;
+        let scene_ref = scene.lock();
+        let spp = scene_ref.sampler.sample_count;
+        if !(start < end && end <= spp) {
+            return Err(PyValueError::new_err(format!("samples [{start}, {end}) are not a range within the scene's {spp} samples per pixel")));
+        }
+        #[allow(clippy::needless_update)]
+        let options = RenderOptions { threads, progress: false, ..RenderOptions::default() };
+        let what = scene.path.clone();
+        let result = py.allow_threads(|| {
+            catch_unwind(AssertUnwindSafe(|| {
+                snell::session::prepare(&scene_ref, mode, &what)
+                    .and_then(|()| snell::session::render_samples(&scene_ref, mode, &options, start..end))
+                    .map(|state| state.to_bytes())
+            }))
+        });
+        drop(scene_ref);
+        match result {
+            Ok(Ok(bytes)) => Ok(PyBytes::new(py, &bytes).unbind()),
+            Ok(Err(e)) => Err(render_error(py, &e, Some(&scene.path))),
+            Err(payload) => Err(panic_error(payload)),
+        }
+    })
+}
+
+fn film_state(bytes: &[u8]) -> PyResult<snell::film::FilmState> {
+    snell::film::FilmState::from_bytes(bytes).map_err(|e| PyValueError::new_err(format!("not a Snell film state: {e:#}")))
+}
+
+/// The exact sum of two film states of disjoint sample ranges of the same
+/// render (an error for overlapping ranges or another scene, seed or mode).
+#[pyfunction]
+fn state_merge(py: Python<'_>, a: &[u8], b: &[u8]) -> PyResult<Py<PyBytes>> {
+    guarded(|| {
+        let (mut a, b) = (film_state(a)?, film_state(b)?);
+        py.allow_threads(|| a.merge(&b)).map_err(|e| PyValueError::new_err(format!("{e:#}")))?;
+        Ok(PyBytes::new(py, &a.to_bytes()).unbind())
+    })
+}
+
+/// The image of a film state, as [`render`] returns images.
+#[pyfunction]
+fn state_develop(py: Python<'_>, state: &[u8]) -> PyResult<RenderResult> {
+    guarded(|| {
+        let state = film_state(state)?;
+        let image = py.allow_threads(|| state.develop());
+        let (names, data) = flatten(&image);
+        Ok((PyBytes::new(py, &image_bytes(&data)).unbind(), image.height, image.width, names, !state.is_finished()))
+    })
+}
+
+/// What a film state holds: its sample ranges, the render's samples per
+/// pixel, and whether every pixel has every sample of the ranges.
+#[pyfunction]
+fn state_info(state: &[u8]) -> PyResult<(Vec<(u32, u32)>, u32, bool)> {
+    guarded(|| {
+        let state = film_state(state)?;
+        Ok((state.ranges().iter().map(|r| (r.start, r.end)).collect(), state.header.sample_count, state.header.complete))
+    })
+}
+
 /// Writes H × W × C float32 `data` with channel `names` to `path` (.exr with
 /// every channel; .png 8-bit sRGB and .pfm hold the colour only).
 #[pyfunction]
@@ -592,5 +662,9 @@ fn _snell(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(write, m)?)?;
     m.add_function(wrap_pyfunction!(read, m)?)?;
     m.add_function(wrap_pyfunction!(cli_main, m)?)?;
+    m.add_function(wrap_pyfunction!(render_samples, m)?)?;
+    m.add_function(wrap_pyfunction!(state_merge, m)?)?;
+    m.add_function(wrap_pyfunction!(state_develop, m)?)?;
+    m.add_function(wrap_pyfunction!(state_info, m)?)?;
     Ok(())
 }
