@@ -158,31 +158,7 @@ pub fn chi2_test_at(bsdf: &Bsdf, wi: Vec3, seed: u64, significance: f64) {
             expected[ti * PHI + pi] = sum * d_area * N as f64;
         }
     }
-    // Pool bins with small expectation (the χ² approximation needs ≥ 5).
-    let mut order: Vec<usize> = (0..expected.len()).collect();
-    order.sort_by(|&a, &b| expected[a].total_cmp(&expected[b]));
-    let (mut chsq, mut dof) = (0.0f64, 0i32);
-    let (mut pool_e, mut pool_o) = (0.0, 0.0);
-    for &i in &order {
-        if expected[i] == 0.0 {
-            assert!(observed[i] < 1e-3 * N as f64 + 1.0, "{} samples fell where the pdf is zero", observed[i]);
-            continue;
-        }
-        if expected[i] < 5.0 {
-            pool_e += expected[i];
-            pool_o += observed[i];
-            continue;
-        }
-        let diff = observed[i] - expected[i];
-        chsq += diff * diff / expected[i];
-        dof += 1;
-    }
-    if pool_e > 0.0 {
-        let diff = pool_o - pool_e;
-        chsq += diff * diff / pool_e;
-        dof += 1;
-    }
-    dof -= 1;
+    let (chsq, dof) = chi2_statistic(&observed, &expected, N);
     assert!(dof > 0, "too few bins for a χ² test");
     let p_value = 1.0 - gamma_p(dof as f64 / 2.0, chsq / 2.0);
     let total_expected: f64 = expected.iter().sum();
@@ -259,8 +235,10 @@ pub fn chi2_directions(mut sample: impl FnMut() -> Option<Vec3>, pdf: impl Fn(Ve
     chi2_verdict(&observed, &expected, valid, N, significance);
 }
 
-/// Pools bins of small expectation, then rejects at `significance`.
-fn chi2_verdict(observed: &[f64], expected: &[f64], valid: usize, n: usize, significance: f64) {
+/// Pearson's χ² of `observed` against `expected` counts (of `n` samples)
+/// and its degrees of freedom, pooling the bins of expectation below 5 (the
+/// χ² approximation needs ≥ 5); samples in a bin of zero pdf fail the test.
+fn chi2_statistic(observed: &[f64], expected: &[f64], n: usize) -> (f64, i32) {
     let mut order: Vec<usize> = (0..expected.len()).collect();
     order.sort_by(|&a, &b| expected[a].total_cmp(&expected[b]));
     let (mut chsq, mut dof) = (0.0f64, 0i32);
@@ -285,6 +263,12 @@ fn chi2_verdict(observed: &[f64], expected: &[f64], valid: usize, n: usize, sign
         dof += 1;
     }
     dof -= 1;
+    (chsq, dof)
+}
+
+/// Pools bins of small expectation, then rejects at `significance`.
+fn chi2_verdict(observed: &[f64], expected: &[f64], valid: usize, n: usize, significance: f64) {
+    let (chsq, dof) = chi2_statistic(observed, expected, n);
     let total_expected: f64 = expected.iter().sum();
     assert!(
         (total_expected - valid as f64).abs() < 0.02 * n as f64,
