@@ -563,6 +563,16 @@ fn missing_and_bad_bitmap_files() {
     }
 }
 
+/// Mitsuba 3.9.1's bitmap `format` (storage precision): a value it does not
+/// know is located and the four it knows are listed.
+#[test]
+fn bitmap_format_choices() {
+    let body = "    <bsdf type=\"diffuse\">\n        <texture type=\"bitmap\" name=\"reflectance\">\n            <string name=\"filename\" value=\"t.png\"/>\n            <string name=\"format\" value=\"fixed\"/>\n        </texture>\n    </bsdf>\n";
+    let e = load_err(&scene(body));
+    assert_error(&e, &scene_path(), 12, 13, "<string name=\"format\"", "format");
+    assert_help(&e, &["auto", "variant", "float16", "uint8"]);
+}
+
 #[test]
 fn include_of_a_missing_file() {
     let dir = temp_dir("include-missing");

@@ -470,6 +470,95 @@ fn face_attributes_are_constant_per_face_and_scaled() {
     assert_located(&load_err(&dir.join("scene.xml"), &text), &text, line_of(&text, "value=\"color\""), &["\"vertex_\" or \"face_\""]);
 }
 
+/// A scalar input read from a mesh attribute: a `blendbsdf` between black
+/// and white `diffuse` weighted by a one-component face attribute has albedo
+/// equal to the weight (Mitsuba's tests/scenes/mesh_attributes
+/// `test_mesh_attributes_1_face_direct.xml` does this; scalar inputs once
+/// dropped the hit's mesh and read 0 everywhere).
+#[test]
+fn face_attribute_as_a_blend_weight() {
+    let dir = temp_dir("face-blend");
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nproperty float weight_0\nend_header\n-1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n3 0 1 2 0.25\n3 0 2 3 0.75\n";
+    let text = attribute_furnace(&dir, ply, "face_weight", 1.0).replace(
+        r#"<bsdf type="diffuse">
+            <texture type="mesh_attribute" name="reflectance">
+                <string name="name" value="face_weight"/>
+                <float name="scale" value="1"/>
+            </texture>
+        </bsdf>"#,
+        r#"<bsdf type="blendbsdf">
+            <texture type="mesh_attribute" name="weight"><string name="name" value="face_weight"/></texture>
+            <bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf>
+            <bsdf type="diffuse"><rgb name="reflectance" value="1"/></bsdf>
+        </bsdf>"#,
+    );
+    assert!(text.contains("blendbsdf"), "the furnace's BSDF was not replaced");
+    let img = &render_passes(&dir.join("scene.xml"), Some(&text), Default::default(), 1, 16)[0];
+    let (lo, hi) = (img.pixels.iter().filter(|p| (p[0] - 0.25).abs() < 1e-5).count(), img.pixels.iter().filter(|p| (p[0] - 0.75).abs() < 1e-5).count());
+    assert!(lo >= 100 && hi >= 100, "{lo} pixels at weight 0.25 and {hi} at 0.75 (mean {:?})", mean(img));
+}
+
+/// Mitsuba's `rawconstant` texture: its value as given, a vector or a float.
+#[test]
+fn rawconstant_texture() {
+    let dir = temp_dir("rawconstant");
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n-1 -1 0\n1 -1 0\n1 1 0\n-1 1 0\n4 0 1 2 3\n";
+    let furnace = attribute_furnace(&dir, ply, "face_weight", 1.0);
+    let old = r#"<texture type="mesh_attribute" name="reflectance">
+                <string name="name" value="face_weight"/>
+                <float name="scale" value="1"/>
+            </texture>"#;
+    for (value, expected) in [(r#"<vector name="value" value="0.2, 0.4, 0.6"/>"#, [0.2f32, 0.4, 0.6]), (r#"<float name="value" value="0.3"/>"#, [0.3; 3])] {
+        let text = furnace.replace(old, &format!(r#"<texture type="rawconstant" name="reflectance">{value}</texture>"#));
+        assert!(text != furnace);
+        let img = &render_passes(&dir.join("scene.xml"), Some(&text), Default::default(), 1, 4)[0];
+        for p in &img.pixels {
+            for c in 0..3 {
+                assert!((p[c] - expected[c]).abs() < 1e-6, "{value}: pixel {p:?}, expected {expected:?}");
+            }
+        }
+    }
+}
+
+/// Mitsuba 3.9.1's checkerboard gives `eval_1` (every scalar input: blend
+/// weights, opacities, roughness) the other square than `eval` (colours);
+/// Snell follows it so that such scenes render as in Mitsuba. Here a
+/// checkerboard is both a blend weight (black/white diffuse) and, on a
+/// second copy of the quad, the reflectance: where one is 1 the other is 0.
+#[test]
+fn checkerboard_scalar_inputs_take_the_other_square() {
+    let dir = temp_dir("checker-eval1");
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nproperty float u\nproperty float v\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n-1 -1 0 0 0\n1 -1 0 1 0\n1 1 0 1 1\n-1 1 0 0 1\n4 0 1 2 3\n";
+    let checker = r#"<texture type="checkerboard" name="NAME"><rgb name="color0" value="1"/><rgb name="color1" value="0"/></texture>"#;
+    let furnace = attribute_furnace(&dir, ply, "face_weight", 1.0);
+    let old = r#"<bsdf type="diffuse">
+            <texture type="mesh_attribute" name="reflectance">
+                <string name="name" value="face_weight"/>
+                <float name="scale" value="1"/>
+            </texture>
+        </bsdf>"#;
+    let colour = furnace.replace(old, &format!("<bsdf type=\"diffuse\">{}</bsdf>", checker.replace("NAME", "reflectance")));
+    let blend = furnace.replace(
+        old,
+        &format!(
+            "<bsdf type=\"blendbsdf\">{}<bsdf type=\"diffuse\"><rgb name=\"reflectance\" value=\"0\"/></bsdf><bsdf type=\"diffuse\"><rgb name=\"reflectance\" value=\"1\"/></bsdf></bsdf>",
+            checker.replace("NAME", "weight")
+        ),
+    );
+    assert!(colour != furnace && blend != furnace, "the furnace's BSDF was not replaced");
+    let a = &render_passes(&dir.join("colour.xml"), Some(&colour), Default::default(), 1, 16)[0];
+    let b = &render_passes(&dir.join("blend.xml"), Some(&blend), Default::default(), 1, 16)[0];
+    // Pixels wholly inside one square (the 4×4 squares are 4 pixels wide).
+    let (mut both, mut inside) = (0, 0);
+    for (p, q) in a.pixels.iter().zip(&b.pixels) {
+        if p[0] == 0.0 || p[0] == 1.0 {
+            inside += 1;
+            both += usize::from((p[0] + q[0] - 1.0).abs() < 1e-6);
+        }
+    }
+    assert!(inside >= 128 && both == inside, "{both} of {inside} whole-square pixels have blend weight = 1 − colour");
+}
+
 /// `<ref name="bsdf" id="…"/>` inside a shape, as Mitsuba's documentation
 /// scenes (e.g. `docs/scenes/include/shape_scene.xml`) write it.
 #[test]

@@ -58,7 +58,7 @@ impl BlendBsdf {
     /// The weight of the second BSDF at `si`, in [0, 1].
     #[inline]
     pub fn weight(&self, si: &SurfaceInteraction) -> f32 {
-        let w = self.weight.eval_1(si.uv);
+        let w = self.weight.eval_1(si);
         if w.is_nan() { 0.0 } else { w.clamp(0.0, 1.0) }
     }
 }

@@ -64,7 +64,7 @@ impl Mask {
     /// The opacity α at `si`, in [0, 1].
     #[inline]
     pub fn opacity(&self, si: &SurfaceInteraction) -> f32 {
-        let a = self.opacity.eval_1(si.uv);
+        let a = self.opacity.eval_1(si);
         if a.is_nan() { 1.0 } else { a.clamp(0.0, 1.0) }
     }
 }

@@ -242,24 +242,15 @@ pub struct MicrofacetParams {
     pub sample_visible: bool,
 }
 
-/// A texture's value as a scalar (a float's value; a colour's luminance), as
-/// Mitsuba's `eval_1`. Mitsuba 3.9.1's checkerboard answers `eval_1` with
-/// the other square's value than `eval` (color1 where `eval` gives
-/// color0); Snell does the same so that a checkered roughness renders as
-/// in Mitsuba (tests/scenes/rough-metals.xml against its reference).
+/// A texture's value as a scalar (a float's value; a colour's luminance),
+/// as Mitsuba's `eval_1` ([`Texture::eval_1`], which also gives Mitsuba's
+/// checkerboard quirk). Pass the surface interaction so that a
+/// `mesh_attribute` finds its mesh.
 #[inline]
-pub(crate) fn scalar(t: &Texture, uv: Vec2) -> f32 {
-    let luminance = |c: Rgb| 0.212_671 * c.0[0] + 0.715_160 * c.0[1] + 0.072_169 * c.0[2];
+pub(crate) fn scalar(t: &Texture, at: impl Into<crate::texture::TexPoint>) -> f32 {
     match t {
         Texture::Constant(c, _) => c.0[0],
-        Texture::Checkerboard(cb) => {
-            let swapped = crate::texture::Checkerboard { color0: cb.color1, color1: cb.color0, to_uv: cb.to_uv };
-            luminance(swapped.eval(uv))
-        }
-        _ => {
-            let c = t.eval(uv);
-            0.212_671 * c.0[0] + 0.715_160 * c.0[1] + 0.072_169 * c.0[2]
-        }
+        _ => t.eval_1(at),
     }
 }
 
@@ -296,8 +287,8 @@ impl MicrofacetParams {
     /// The distribution at the point `si`.
     #[inline]
     pub fn at(&self, si: &SurfaceInteraction) -> Microfacet {
-        let a_u = scalar(&self.alpha_u, si.uv);
-        let a_v = self.alpha_v.as_ref().map_or(a_u, |t| scalar(t, si.uv));
+        let a_u = scalar(&self.alpha_u, si);
+        let a_v = self.alpha_v.as_ref().map_or(a_u, |t| scalar(t, si));
         Microfacet::new(self.kind, a_u, a_v, self.sample_visible)
     }
 }

@@ -79,7 +79,7 @@ impl NormalMap {
 
     /// The perturbed normal (unnormalised), in `si`'s shading frame.
     fn perturbation(&self, si: &SurfaceInteraction) -> Vec3 {
-        let c = self.normalmap.eval(si.uv);
+        let c = self.normalmap.eval(si);
         Vec3::new(2.0 * c[0] - 1.0, 2.0 * c[1] - 1.0, 2.0 * c[2] - 1.0)
     }
 }

@@ -115,8 +115,8 @@ pub(crate) fn rate(props: &Props, name: &str) -> Result<f32> {
 
 /// The value of an optional scalar parameter at `uv` (0 when absent).
 #[inline]
-pub(crate) fn value(t: &Option<Texture>, uv: Vec2) -> f32 {
-    t.as_ref().map_or(0.0, |t| scalar(t, uv))
+pub(crate) fn value(t: &Option<Texture>, at: impl Into<crate::texture::TexPoint>) -> f32 {
+    t.as_ref().map_or(0.0, |t| scalar(t, at))
 }
 
 /// Schlick's weight (1 − cos)⁵, cos clamped to [0, 1].
@@ -330,11 +330,11 @@ impl Principled {
     #[inline]
     fn at(&self, si: &SurfaceInteraction) -> At {
         At {
-            roughness: scalar(&self.roughness, si.uv),
-            anisotropic: self.anisotropic.as_ref().map(|t| scalar(t, si.uv)),
-            metallic: value(&self.metallic, si.uv),
-            spec_trans: value(&self.spec_trans, si.uv),
-            clearcoat: value(&self.clearcoat, si.uv),
+            roughness: scalar(&self.roughness, si),
+            anisotropic: self.anisotropic.as_ref().map(|t| scalar(t, si)),
+            metallic: value(&self.metallic, si),
+            spec_trans: value(&self.spec_trans, si),
+            clearcoat: value(&self.clearcoat, si),
         }
     }
 
@@ -346,7 +346,7 @@ impl Principled {
 
     #[inline]
     fn clearcoat_distribution(&self, si: &SurfaceInteraction) -> Gtr1 {
-        let gloss = scalar(&self.clearcoat_gloss, si.uv);
+        let gloss = scalar(&self.clearcoat_gloss, si);
         Gtr1 { alpha: 0.1 + (0.001 - 0.1) * gloss }
     }
 
@@ -439,7 +439,7 @@ impl BsdfModel for Principled {
                 let fp: S = if front {
                     let c = wi.dot(wh);
                     let w = schlick_weight_at(c, self.eta);
-                    let spec_tint = value(&self.spec_tint, si.uv);
+                    let spec_tint = value(&self.spec_tint, si);
                     let mut fp = S::splat((1.0 - p.metallic) * (1.0 - spec_tint) * f);
                     if self.metallic.is_some() {
                         fp += schlick(base, w) * p.metallic;
@@ -479,15 +479,15 @@ impl BsdfModel for Principled {
         if reflect && front && ctx.wants(Lobe::DIFFUSE_REFLECTION) {
             let cos_d = wh.dot(wo);
             if brdf > 0.0 {
-                let k = diffuse_factor(cos_i, cos_o, cos_d, p.roughness, value(&self.flatness, si.uv));
+                let k = diffuse_factor(cos_i, cos_o, cos_d, p.roughness, value(&self.flatness, si));
                 result += base * (brdf * cos_o.abs() / PI * k);
             }
-            let sheen = value(&self.sheen, si.uv);
+            let sheen = value(&self.sheen, si);
             if sheen > 0.0 && 1.0 - p.metallic > 0.0 {
                 let fd = schlick_weight(cos_d.abs());
                 let s = sheen * (1.0 - p.metallic) * fd * cos_o.abs();
                 if self.sheen_tint.is_some() {
-                    let st = value(&self.sheen_tint, si.uv);
+                    let st = value(&self.sheen_tint, si);
                     let c = tint(base, luminance(base, wl)) * st + S::splat(1.0 - st);
                     result += c * s;
                 } else {

@@ -141,10 +141,10 @@ impl PrincipledThin {
     #[inline]
     fn at(&self, si: &SurfaceInteraction) -> At {
         At {
-            roughness: scalar(&self.roughness, si.uv),
-            anisotropic: self.anisotropic.as_ref().map(|t| scalar(t, si.uv)),
-            spec_trans: value(&self.spec_trans, si.uv),
-            diff_trans: value(&self.diff_trans, si.uv) / 2.0,
+            roughness: scalar(&self.roughness, si),
+            anisotropic: self.anisotropic.as_ref().map(|t| scalar(t, si)),
+            spec_trans: value(&self.spec_trans, si),
+            diff_trans: value(&self.diff_trans, si) / 2.0,
         }
     }
 
@@ -219,14 +219,14 @@ impl BsdfModel for PrincipledThin {
         let base: S = self.base_color.eval_spectrum(si, wl);
         let mut result = S::zero();
         if self.spec_trans.is_some() && t > 0.0 {
-            let eta = scalar(&self.eta, si.uv);
+            let eta = scalar(&self.eta, si);
             let f = fresnel_dielectric(wi.dot(wh), eta).r;
             let (refl, trans) = self.distributions(&p, eta);
             if reflect && ctx.wants(Lobe::GLOSSY_REFLECTION) && compatible(wh, wi, wo, cos_i, true) {
                 let dg = refl.d(wh) * refl.g(wi, wo, wh) / (4.0 * cos_i);
                 if dg > 0.0 && dg.is_finite() {
                     let fs: S = if self.spec_tint.is_some() {
-                        let st = value(&self.spec_tint, si.uv);
+                        let st = value(&self.spec_tint, si);
                         let r0 = tint(base, luminance(base, wl)) * schlick_r0(eta);
                         S::splat(f * (1.0 - st)) + schlick(r0, schlick_weight_at(wi.dot(wh), eta)) * st
                     } else {
@@ -244,14 +244,14 @@ impl BsdfModel for PrincipledThin {
         }
         if reflect && t < 1.0 && p.diff_trans < 1.0 && ctx.wants(Lobe::DIFFUSE_REFLECTION) {
             let cos_d = wh.dot(wo);
-            let k = diffuse_factor(cos_i, cos_o, cos_d, p.roughness, value(&self.flatness, si.uv));
+            let k = diffuse_factor(cos_i, cos_o, cos_d, p.roughness, value(&self.flatness, si));
             let w = (1.0 - t) * (1.0 - p.diff_trans);
             result += base * (w * cos_o / PI * k);
-            let sheen = value(&self.sheen, si.uv);
+            let sheen = value(&self.sheen, si);
             if sheen > 0.0 {
                 let s = sheen * w * schlick_weight(cos_d.abs()) * cos_o.abs();
                 if self.sheen_tint.is_some() {
-                    let st = value(&self.sheen_tint, si.uv);
+                    let st = value(&self.sheen_tint, si);
                     let c = tint(base, luminance(base, wl)) * st + S::splat(1.0 - st);
                     result += c * s;
                 } else {
@@ -281,7 +281,7 @@ impl BsdfModel for PrincipledThin {
             let wo_r = Vec3::new(wo.x, wo.y, wo.z.abs());
             let wh = (wi + wo_r).normalize();
             let dwh_dwo = (1.0 / (4.0 * wo_r.dot(wh))).abs();
-            let (refl, trans) = self.distributions(&p, scalar(&self.eta, si.uv));
+            let (refl, trans) = self.distributions(&p, scalar(&self.eta, si));
             if reflect && compatible(wh, wi, wo, wi.z, true) {
                 pdf += psr * refl.pdf(wi, wh) * dwh_dwo;
             }
@@ -307,7 +307,7 @@ impl BsdfModel for PrincipledThin {
         let p = self.at(si);
         let [psr, pst, pdr, _] = self.probabilities(ctx, &p)?;
         let (wo, lobe) = if u1 < psr + pst {
-            let eta = scalar(&self.eta, si.uv);
+            let eta = scalar(&self.eta, si);
             let (refl, trans) = self.distributions(&p, eta);
             let transmit = u1 >= psr;
             let (m, _) = if transmit { trans.sample(w, u2) } else { refl.sample(w, u2) };

@@ -207,8 +207,8 @@ impl Moment {
 /// BSDF has one, else f(wi, n)·π (zero for purely specular BSDFs).
 fn albedo<S: Spectrum>(bsdf: &Bsdf, si: &crate::geometry::SurfaceInteraction, wi: Vec3, wl: &S::Wavelengths) -> Rgb {
     match bsdf {
-        Bsdf::Diffuse(d) => d.reflectance.eval(si.uv),
-        Bsdf::Plastic(p) => p.diffuse_reflectance.eval(si.uv),
+        Bsdf::Diffuse(d) => d.reflectance.eval(si),
+        Bsdf::Plastic(p) => p.diffuse_reflectance.eval(si),
         Bsdf::TwoSided(t) => {
             if wi.z >= 0.0 {
                 albedo::<S>(&t.front, si, wi, wl)

@@ -38,7 +38,7 @@ pub const BSDFS: [&str; 19] = [
     "principled", "principledthin", "retarder",
     "roughconductor", "roughdielectric", "roughplastic", "thindielectric", "twosided",
 ];
-pub const TEXTURES: [&str; 3] = ["bitmap", "checkerboard", "mesh_attribute"];
+pub const TEXTURES: [&str; 4] = ["bitmap", "checkerboard", "mesh_attribute", "rawconstant"];
 pub const EMITTERS: [&str; 7] = ["area", "point", "spot", "constant", "directional", "envmap", "projector"];
 pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
@@ -750,6 +750,9 @@ impl Loader {
                     _ => bitmap::Wrap::Repeat,
                 };
                 let raw = props.bool("raw", false)?;
+                // Mitsuba's storage precision: `uint8` and `float16` round the
+                // texels as Mitsuba stores them; `auto`/`variant` keep floats.
+                let format = props.choice("format", "auto", &["auto", "variant", "float16", "uint8"])?;
                 let path = resolve_path(node, filename);
                 let loc = node.props.iter().find(|p| p.name == "filename").map_or(&node.loc, |p| &p.loc);
                 let (width, height, texels) =
@@ -757,7 +760,24 @@ impl Loader {
                 if width == 0 || height == 0 {
                     return Err(SceneError::at(loc, format!("image {} is empty", path.display())));
                 }
+                let texels = match format {
+                    "uint8" => texels.into_iter().map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() / 255.0)).collect(),
+                    "float16" => texels.into_iter().map(|c| c.map(round_to_half)).collect(),
+                    _ => texels,
+                };
                 Texture::Bitmap(Arc::new(Bitmap { width, height, texels, filter, wrap, to_uv }))
+            }
+            // A constant stored as given: no colour conversion (Mitsuba uses
+            // it for raw data such as a normal map's vector). Snell's
+            // constant textures are linear already; in spectral mode a
+            // rawconstant read as a colour is uplifted like an `rgb`.
+            "rawconstant" => {
+                let value = match props.vec3_opt("value") {
+                    Ok(Some(v)) => Rgb::new(v.x, v.y, v.z),
+                    Ok(None) => props.color("value", Rgb::new(1.0, 1.0, 1.0))?,
+                    Err(_) => props.color_opt("value")?.unwrap_or(Rgb::new(1.0, 1.0, 1.0)),
+                };
+                Texture::constant(value)
             }
             "mesh_attribute" => {
                 let name = props.string_req("name")?;
@@ -1181,5 +1201,36 @@ impl Loader {
             out.push((name.to_string(), kind));
         }
         Ok(out)
+    }
+}
+
+/// `v` rounded to the nearest IEEE half-precision value (as Mitsuba stores
+/// a `float16` bitmap); out-of-range values become ±65504.
+fn round_to_half(v: f32) -> f32 {
+    if !v.is_finite() || v == 0.0 {
+        return v;
+    }
+    let a = v.abs().min(65504.0);
+    // Halves have 10 fraction bits; below 2⁻¹⁴ they are subnormal with a
+    // fixed step of 2⁻²⁴.
+    let exp = a.log2().floor().max(-14.0);
+    let step = (exp - 10.0).exp2();
+    ((a / step).round() * step).min(65504.0).copysign(v)
+}
+
+#[cfg(test)]
+mod half_tests {
+    use super::round_to_half;
+
+    #[test]
+    fn rounds_as_ieee_half() {
+        assert_eq!(round_to_half(1.0), 1.0);
+        assert_eq!(round_to_half(-2.5), -2.5);
+        // 0.1 in half precision is 1638/16384.
+        assert_eq!(round_to_half(0.1), 1638.0 / 16384.0);
+        assert_eq!(round_to_half(1.0 + 1.0 / 4096.0), 1.0); // below half a step (2⁻¹⁰) rounds down
+        assert_eq!(round_to_half(70000.0), 65504.0);
+        assert_eq!(round_to_half(1e-8), 0.0); // under half the smallest subnormal, 2⁻²⁴
+        assert_eq!(round_to_half(3.0 * (-24.0f32).exp2()), 3.0 * (-24.0f32).exp2());
     }
 }

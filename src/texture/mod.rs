@@ -77,10 +77,22 @@ impl Texture {
     }
 
     /// A scalar value (Mitsuba's `eval_1`): the luminance of the colour
-    /// (the value itself for a grey or a float).
+    /// (the value itself for a grey or a float). Pass the surface
+    /// interaction, not only its uv, so that a `mesh_attribute` finds its
+    /// mesh. Mitsuba 3.9.1's checkerboard answers `eval_1` with the other
+    /// square's value than `eval` (color1 where `eval` gives color0); Snell
+    /// does the same, so that a checkered roughness, blend weight or opacity
+    /// renders as in Mitsuba.
     #[inline]
-    pub fn eval_1(&self, uv: Vec2) -> f32 {
-        luminance(self.eval(uv))
+    pub fn eval_1(&self, at: impl Into<TexPoint>) -> f32 {
+        match self {
+            Texture::Constant(c, _) if c.0[0] == c.0[1] && c.0[1] == c.0[2] => c.0[0],
+            Texture::Checkerboard(cb) => {
+                let swapped = Checkerboard { color0: cb.color1, color1: cb.color0, to_uv: cb.to_uv };
+                luminance(swapped.eval(at.into().uv))
+            }
+            _ => luminance(self.eval(at)),
+        }
     }
 
     /// The gradient of [`Texture::eval_1`] in uv (Mitsuba's `eval_1_grad`):
