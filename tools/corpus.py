@@ -152,6 +152,28 @@ def worker_mitsuba(a):
                 p[key] = mi.ScalarVector2u(w, h)
             elif key.endswith("film.crop_offset"):
                 p[key] = mi.ScalarPoint2u(0, 0)
+        # Mitsuba keeps the sensor's x_fov when the film is resized through
+        # its parameters; loading the XML with that film (what Snell's
+        # --width does) derives it from the fov and fov_axis at the new
+        # aspect ratio. Where the rounded height changes the aspect, do the
+        # same here, or sharp edges shift by a fraction of a pixel.
+        axis = fov_axis(a.scene) or "x"
+        a0, a1 = w0 / h0, w / h
+        for key in list(p.keys()):
+            if key.endswith("x_fov") and abs(a1 / a0 - 1) > 1e-6:
+                import math
+                t0 = math.tan(math.radians(float(p[key][0] if hasattr(p[key], '__getitem__') else p[key])) / 2)
+                if axis == "smaller":
+                    axis = "y" if a0 > 1 else "x"
+                elif axis == "larger":
+                    axis = "x" if a0 > 1 else "y"
+                if axis == "y":
+                    t1 = t0 * a1 / a0
+                elif axis == "diagonal":
+                    t1 = t0 * math.sqrt(1 + 1 / a0 ** 2) / math.sqrt(1 + 1 / a1 ** 2)
+                else:
+                    t1 = t0
+                p[key] = math.degrees(2 * math.atan(t1))
         p.update()
         out["size"] = [w, h]
         passes, times = [], []
@@ -177,6 +199,27 @@ def worker_mitsuba(a):
     except Exception as e:  # noqa: BLE001
         out["error"] = mitsuba_error(e, a.scene)
     print(json.dumps(out))
+
+
+def fov_axis(scene, seen=None):
+    """The sensor's fov_axis as the XML (or a file it includes) writes it:
+    x, y, diagonal, smaller or larger; "diagonal" for a focal_length without
+    a fov; "x" (Mitsuba's default) if neither is found."""
+    seen = seen if seen is not None else set()
+    if scene in seen or not os.path.isfile(scene):
+        return None
+    seen.add(scene)
+    text = open(scene, encoding="utf-8", errors="replace").read()
+    m = re.search(r'name\s*=\s*"fov_axis"\s+value\s*=\s*"(\w+)"', text)
+    if m:
+        return m.group(1)
+    if 'name="focal_length"' in text and 'name="fov"' not in text:
+        return "diagonal"
+    for inc in re.findall(r'<include\s+filename\s*=\s*"([^"]+)"', text):
+        found = fov_axis(os.path.join(os.path.dirname(scene), inc), seen)
+        if found:
+            return found
+    return None
 
 
 def read_pfm(path):
