@@ -201,7 +201,7 @@ fn bad_scene_reports_file_line_and_column() {
     assert!(stderr.contains(&format!("{}:25:9", scene.display())), "{stderr}");
     assert!(stderr.contains("error: unknown bsdf plugin \"difuse\""), "{stderr}");
     assert!(stderr.contains("25 |         <bsdf type=\"difuse\">"), "{stderr}");
-    assert!(stderr.contains("valid choices are: birefringent, blendbsdf, bumpmap, conductor, dielectric, diffuse, mask, normalmap, null, plastic, polarizer, principled, principledthin, retarder, roughconductor, roughdielectric, roughplastic, thindielectric, twosided"), "{stderr}");
+    assert!(stderr.contains("valid choices are: birefringent, blendbsdf, bumpmap, conductor, dielectric, diffuse, mask, normalmap, null, plastic, polarizer, pplastic, principled, principledthin, retarder, roughconductor, roughdielectric, roughplastic, thindielectric, twosided"), "{stderr}");
     assert!(!out_exr.exists());
 
     // An undefined parameter on the command line's side.

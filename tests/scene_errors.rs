@@ -133,7 +133,7 @@ fn wrong_root_element_and_missing_version() {
 fn unknown_bsdf_plugin() {
     let e = load_err(&scene("    <bsdf type=\"difuse\"/>\n"));
     assert_error(&e, &scene_path(), 9, 5, "<bsdf type=\"difuse\"", "unknown bsdf plugin \"difuse\"");
-    assert_help(&e, &["blendbsdf, bumpmap, conductor, dielectric, diffuse, mask, normalmap, null, plastic, polarizer, principled, principledthin, retarder, roughconductor, roughdielectric, roughplastic, thindielectric, twosided"]);
+    assert_help(&e, &["blendbsdf, bumpmap, conductor, dielectric, diffuse, mask, normalmap, null, plastic, polarizer, pplastic, principled, principledthin, retarder, roughconductor, roughdielectric, roughplastic, thindielectric, twosided"]);
 }
 
 // ------------------------------------------------- specular material inputs
@@ -592,7 +592,7 @@ fn error_inside_an_included_file_points_into_that_file() {
     std::fs::write(&path, &text).unwrap();
     let e = snell::load_file(&path, &LoadOptions::default()).err().expect("should fail");
     assert_error(&e, &part, 2, 5, "<bsdf", "unknown bsdf plugin \"hair\"");
-    assert_help(&e, &["diffuse, mask, normalmap, null, plastic, polarizer, principled, principledthin, retarder, roughconductor, roughdielectric, roughplastic, thindielectric, twosided"]);
+    assert_help(&e, &["diffuse, mask, normalmap, null, plastic, polarizer, pplastic, principled, principledthin, retarder, roughconductor, roughdielectric, roughplastic, thindielectric, twosided"]);
 
     // Malformed XML in the included file, too.
     std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"diffuse\">\n</scene>\n").unwrap();

@@ -52,6 +52,7 @@ pub mod principledthin;
 pub mod retarder;
 pub mod roughconductor;
 pub mod roughdielectric;
+pub mod pplastic;
 pub mod roughplastic;
 pub mod thindielectric;
 pub mod twosided;
@@ -72,6 +73,7 @@ pub use principledthin::PrincipledThin;
 pub use retarder::Retarder;
 pub use roughconductor::RoughConductor;
 pub use roughdielectric::RoughDielectric;
+pub use pplastic::PolarizedPlastic;
 pub use roughplastic::RoughPlastic;
 pub use thindielectric::ThinDielectric;
 pub use twosided::TwoSided;
@@ -249,6 +251,7 @@ pub enum Bsdf {
     RoughConductor(RoughConductor),
     RoughDielectric(RoughDielectric),
     RoughPlastic(RoughPlastic),
+    PolarizedPlastic(PolarizedPlastic),
     Principled(Principled),
     PrincipledThin(PrincipledThin),
     Birefringent(Birefringent),
@@ -274,6 +277,7 @@ macro_rules! dispatch {
             Bsdf::RoughConductor($b) => $e,
             Bsdf::RoughDielectric($b) => $e,
             Bsdf::RoughPlastic($b) => $e,
+            Bsdf::PolarizedPlastic($b) => $e,
             Bsdf::Principled($b) => $e,
             Bsdf::PrincipledThin($b) => $e,
             Bsdf::Birefringent($b) => $e,
@@ -301,6 +305,7 @@ impl Bsdf {
             Bsdf::RoughConductor(_) => "roughconductor",
             Bsdf::RoughDielectric(_) => "roughdielectric",
             Bsdf::RoughPlastic(_) => "roughplastic",
+            Bsdf::PolarizedPlastic(_) => "pplastic",
             Bsdf::Principled(_) => "principled",
             Bsdf::PrincipledThin(_) => "principledthin",
             Bsdf::Birefringent(_) => "birefringent",

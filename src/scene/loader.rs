@@ -33,8 +33,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub const SHAPES: [&str; 10] = ["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "shapegroup", "instance"];
-pub const BSDFS: [&str; 19] = [
-    "birefringent", "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer",
+pub const BSDFS: [&str; 20] = [
+    "birefringent", "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer", "pplastic",
     "principled", "principledthin", "retarder",
     "roughconductor", "roughdielectric", "roughplastic", "thindielectric", "twosided",
 ];
@@ -672,6 +672,7 @@ impl Loader {
             "roughconductor" => Bsdf::RoughConductor(crate::bsdf::RoughConductor::from_props(&props, self)?),
             "roughdielectric" => Bsdf::RoughDielectric(crate::bsdf::RoughDielectric::from_props(&props, self)?),
             "roughplastic" => Bsdf::RoughPlastic(crate::bsdf::RoughPlastic::from_props(&props, self)?),
+            "pplastic" => Bsdf::PolarizedPlastic(crate::bsdf::PolarizedPlastic::from_props(&props, self)?),
             "principled" => Bsdf::Principled(crate::bsdf::Principled::from_props(&props, self)?),
             "principledthin" => Bsdf::PrincipledThin(crate::bsdf::PrincipledThin::from_props(&props, self)?),
             "birefringent" => Bsdf::Birefringent(crate::bsdf::Birefringent::from_props(&props, self)?),
