@@ -7,7 +7,7 @@
 //! | `p1`           | point     | (0, 0, 1) | object-space end of the centre line            |
 //! | `radius`       | float     | 1         | object-space radius                            |
 //! | `flip_normals` | boolean   | false     | normals point inwards (the inside is the front) |
-//! | `to_world`     | transform | identity  | object-to-world (rotation, translation, uniform scale) |
+//! | `to_world`     | transform | identity  | object-to-world (rotation, translation, a scale that is uniform across the axis) |
 //!
 //! ```xml
 //! <shape type="cylinder">
@@ -39,8 +39,9 @@ pub struct Cylinder {
 
 impl Cylinder {
     /// The cylinder of radius `radius` from `p0` to `p1`, placed by
-    /// `to_world`; `None` if the axis has zero length or `to_world` is not a
-    /// similarity (non-uniform scale, shear or a mirror).
+    /// `to_world`; `None` if the axis has zero length or `to_world` does not
+    /// keep the tube circular (a different scale across the axis, shear or
+    /// a mirror; a scale along the axis is allowed).
     pub fn new(to_world: &Transform, p0: Vec3, p1: Vec3, radius: f32, flip_normals: bool) -> Option<Cylinder> {
         let d = p1 - p0;
         let length = d.length();
@@ -51,18 +52,20 @@ impl Cylinder {
         let local = Mat4::from_cols(f.s.extend(0.0), f.t.extend(0.0), f.n.extend(0.0), p0.extend(1.0));
         let m = to_world.matrix * local;
         let (x, y, z) = (m.x_axis.truncate(), m.y_axis.truncate(), m.z_axis.truncate());
-        let s = x.length();
-        let similar = (y.length() - s).abs() <= 1e-4 * s
-            && (z.length() - s).abs() <= 1e-4 * s
+        // As Mitsuba: the axes stay perpendicular and the cross-section a
+        // circle (equal scale across the axis); the scale along the axis
+        // may differ (it stretches the length).
+        let (s, sz) = (x.length(), z.length());
+        let circular = (y.length() - s).abs() <= 1e-4 * s
             && x.dot(y).abs() <= 1e-4 * s * s
-            && y.dot(z).abs() <= 1e-4 * s * s
-            && x.dot(z).abs() <= 1e-4 * s * s
+            && y.dot(z).abs() <= 1e-4 * s * sz
+            && x.dot(z).abs() <= 1e-4 * s * sz
             && x.cross(y).dot(z) > 0.0;
-        if !similar || !(s > 0.0) {
+        if !circular || !(s > 0.0 && sz > 0.0) {
             return None;
         }
-        let rigid = Mat4::from_cols((x / s).extend(0.0), (y / s).extend(0.0), (z / s).extend(0.0), m.w_axis);
-        Some(Cylinder { to_world: Transform::from_matrix(rigid)?, radius: radius * s, length: length * s, flip_normals })
+        let rigid = Mat4::from_cols((x / s).extend(0.0), (y / s).extend(0.0), (z / sz).extend(0.0), m.w_axis);
+        Some(Cylinder { to_world: Transform::from_matrix(rigid)?, radius: radius * s, length: length * sz, flip_normals })
     }
 
     pub fn area(&self) -> f32 {
@@ -178,6 +181,31 @@ mod tests {
         let t = Cylinder::intersect(&inv(&c.to_world), c.radius, c.length, Vec3::new(1.0, 2.0, 0.0), d, f32::INFINITY);
         assert!((t * d.x - 1.0).abs() < 1e-4, "{t}");
         assert!(Cylinder::new(&Transform::from_matrix(Mat4::from_scale(Vec3::new(1.0, 2.0, 1.0))).unwrap(), Vec3::ZERO, Vec3::Z, 1.0, false).is_none());
+    }
+
+    /// A scale along the axis stretches the tube (Mitsuba's
+    /// tests/scenes/various_shapes scales a cylinder by (1.5, 1.5, 2)); a
+    /// scale across it that is not uniform, a shear or a mirror is refused.
+    #[test]
+    fn a_stretch_along_the_axis_changes_the_length_only() {
+        let scale = Mat4::from_scale(Vec3::new(1.5, 1.5, 2.0));
+        let rotate = Mat4::from_axis_angle(Vec3::new(0.3, -0.5, 0.8).normalize(), 0.7);
+        let t = Transform::from_matrix(Mat4::from_translation(Vec3::new(0.0, -2.0, -2.0)) * rotate * scale).unwrap();
+        let c = Cylinder::new(&t, Vec3::ZERO, Vec3::Z, 1.0, false).unwrap();
+        assert!((c.radius - 1.5).abs() < 1e-5 && (c.length - 2.0).abs() < 1e-5, "radius {} length {}", c.radius, c.length);
+        // Points of the object-space tube map onto the world-space one.
+        let mut rng = crate::math::Pcg32::new(9, 1);
+        for _ in 0..100 {
+            let (phi, z) = (rng.next_f32() * 2.0 * PI, rng.next_f32());
+            let world = t.point(Vec3::new(phi.cos(), phi.sin(), z));
+            let l = c.to_world.inverse_point(world);
+            assert!(((l.x * l.x + l.y * l.y).sqrt() - 1.5).abs() < 1e-4 && (l.z - 2.0 * z).abs() < 1e-4, "{l}");
+        }
+        let shear = Mat4::from_cols(Vec3::X.extend(0.0), Vec3::new(0.3, 1.0, 0.0).extend(0.0), Vec3::Z.extend(0.0), Vec3::ZERO.extend(1.0));
+        let mirror = Mat4::from_scale(Vec3::new(1.0, 1.0, -2.0));
+        for m in [shear, mirror] {
+            assert!(Cylinder::new(&Transform::from_matrix(m).unwrap(), Vec3::ZERO, Vec3::Z, 1.0, false).is_none());
+        }
     }
 
     #[test]

@@ -423,7 +423,7 @@ impl Loader {
                 let radius = props.float_checked("radius", 1.0, |r| r > 0.0 && r.is_finite(), "positive")?;
                 let cylinder = Cylinder::new(&to_world, p0, p1, radius, flip).ok_or_else(|| {
                     let loc = node.props.iter().find(|p| p.name == "to_world").map_or(&node.loc, |p| &p.loc);
-                    SceneError::at(loc, "a cylinder needs p0 ≠ p1 and a to_world that is a similarity (rotation, translation, uniform scale, no mirror)")
+                    SceneError::at(loc, "a cylinder needs p0 ≠ p1 and a to_world that keeps it circular (rotation, translation, a scale uniform across its axis — similarity or a stretch along the axis — no shear, no mirror)")
                 })?;
                 ShapeGeometry::Cylinder(cylinder)
             }
