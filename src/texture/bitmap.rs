@@ -324,6 +324,29 @@ mod pfm_tests {
         let _ = std::fs::remove_dir_all(&dir);
     }
 
+    /// The 8-bit formats Mitsuba's Bitmap reads besides PNG and JPEG — BMP
+    /// (Mitsuba's docs/scenes/emitter_projector_textured.xml uses one), TGA
+    /// and PPM — decode to the same sRGB-decoded texels as a PNG.
+    #[test]
+    fn bmp_tga_and_ppm_read_like_png() {
+        let dir = std::env::temp_dir().join(format!("snell-8bit-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let img = image::RgbImage::from_fn(3, 2, |x, y| image::Rgb([(40 * x + 10) as u8, (100 * y + 20) as u8, 200]));
+        let mut reference = None;
+        for ext in ["png", "bmp", "tga", "ppm"] {
+            let path = dir.join(format!("t.{ext}"));
+            img.save(&path).unwrap_or_else(|e| panic!("{ext}: {e}"));
+            let (w, h, px) = read_image(&path, false).unwrap_or_else(|e| panic!("{ext}: {e}"));
+            assert_eq!((w, h), (3, 2), "{ext}");
+            assert!((px[4][1] - srgb_to_linear(120.0 / 255.0)).abs() < 1e-6, "{ext}: {:?}", px[4]);
+            match &reference {
+                None => reference = Some(px),
+                Some(r) => assert_eq!(&px, r, "{ext} differs from png"),
+            }
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
     /// Radiance RGBE (`.hdr`) images are linear: no sRGB decoding.
     #[test]
     fn radiance_hdr_is_read_linear_top_row_first() {
