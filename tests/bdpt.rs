@@ -242,3 +242,17 @@ fn bad_parameters_are_located_errors() {
     let env = snell::load_str(Path::new("env.xml"), &small_scene("perspective", r#"<emitter type="constant"/>"#, bdpt), &LoadOptions::default());
     assert!(env.is_ok());
 }
+
+/// Switching strategies off (`light_image`, `sample_direct`) re-weights the
+/// others: the image stays the same in expectation.
+#[test]
+fn fewer_strategies_same_image() {
+    let scene = "tests/scenes/cornell-glass-gold.xml";
+    let from = r#"<integrator type="path">"#;
+    let full = swap(scene, from, BDPT);
+    let fewer = swap(scene, from, r#"<integrator type="bdpt"><boolean name="light_image" value="false"/><boolean name="sample_direct" value="false"/>"#);
+    let list = [("res", "32"), ("max_depth", "6")];
+    let a = passes_of::<Rgb>(scene, &fewer, &list, 16, 16);
+    let b = passes_of::<Rgb>(scene, &full, &list, 16, 16);
+    assert_agree("bdpt without t = 1 and s = 1 vs all strategies", &a, &b, 8, 0.02);
+}

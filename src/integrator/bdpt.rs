@@ -596,77 +596,66 @@ impl Bdpt {
         let qs_minus = if s >= 2 { light.get(s - 2) } else { None };
         let pt_minus = if t >= 2 { cam.get(t - 2) } else { None };
 
-        // (forward density, reverse density, delta) of the strategy's vertices.
-        let mut cv: [(f32, f32, bool); 64] = [(0.0, 0.0, false); 64];
-        let mut lv: [(f32, f32, bool); 64] = [(0.0, 0.0, false); 64];
-        let mut cvec;
-        let mut lvec;
-        let cf: &mut [(f32, f32, bool)] = if t <= 64 {
-            &mut cv[..t]
-        } else {
-            cvec = vec![(0.0, 0.0, false); t];
-            &mut cvec[..]
-        };
-        let lf: &mut [(f32, f32, bool)] = if s <= 64 {
-            &mut lv[..s]
-        } else {
-            lvec = vec![(0.0, 0.0, false); s];
-            &mut lvec[..]
-        };
-        for (i, x) in cf.iter_mut().enumerate() {
-            let v = &cam[i];
-            *x = (v.pdf_fwd, v.pdf_rev, v.delta);
-        }
-        for (i, x) in lf.iter_mut().enumerate() {
-            let v = if s == 1 { sampled } else { light.get(i) };
-            let Some(v) = v else { return 0.0 };
-            *x = (v.pdf_fwd, v.pdf_rev, v.delta);
-        }
-        // The connection's ends scatter smoothly; their reverse densities
+        // The connection's ends scatter smoothly (their delta flags are
+        // dropped); the reverse densities of the two vertices at each end
         // are those of this path.
-        cf[t - 1].2 = false;
-        if s > 0 {
-            lf[s - 1].2 = false;
-        }
         let emitter_at_pt = if s == 0 { pt.emitter(scene) } else { None };
-        cf[t - 1].1 = match qs {
+        let pt_rev = match qs {
             Some(q) => q.pdf(c, qs_minus, pt, TransportMode::Importance),
             None => emitter_at_pt.map_or(0.0, |e| origin_pdf(scene, e)),
         };
-        if let Some(pm) = pt_minus {
-            cf[t - 2].1 = match qs {
-                Some(q) => pt.pdf(c, Some(q), pm, TransportMode::Importance),
-                None => emitter_at_pt.map_or(0.0, |e| to_area(emission_pdf(scene, e, pt.ns, (pm.p - pt.p).normalize_or_zero()), pt.p, pm)),
-            };
-        }
-        if let Some(q) = qs {
-            lf[s - 1].1 = pt.pdf(c, pt_minus, q, TransportMode::Radiance);
-            if let Some(qm) = qs_minus {
-                lf[s - 2].1 = q.pdf(c, Some(pt), qm, TransportMode::Radiance);
+        let pt_minus_rev = pt_minus.map_or(0.0, |pm| match qs {
+            Some(q) => pt.pdf(c, Some(q), pm, TransportMode::Importance),
+            None => emitter_at_pt.map_or(0.0, |e| to_area(emission_pdf(scene, e, pt.ns, (pm.p - pt.p).normalize_or_zero()), pt.p, pm)),
+        });
+        let qs_rev = qs.map_or(0.0, |q| pt.pdf(c, pt_minus, q, TransportMode::Radiance));
+        let qs_minus_rev = match (qs, qs_minus) {
+            (Some(q), Some(qm)) => q.pdf(c, Some(pt), qm, TransportMode::Radiance),
+            _ => 0.0,
+        };
+        // (forward density, reverse density, delta) of the strategy's i-th camera and light vertex.
+        let cam_at = |i: usize| {
+            let v = &cam[i];
+            if i + 1 == t {
+                (v.pdf_fwd, pt_rev, false)
+            } else if i + 2 == t {
+                (v.pdf_fwd, pt_minus_rev, v.delta)
+            } else {
+                (v.pdf_fwd, v.pdf_rev, v.delta)
             }
-        }
+        };
+        let light_vertex = |i: usize| if s == 1 { sampled } else { light.get(i) };
+        let light_at = |i: usize| {
+            let Some(v) = light_vertex(i) else { return (0.0, 0.0, false) };
+            if i + 1 == s {
+                (v.pdf_fwd, qs_rev, false)
+            } else if i + 2 == s {
+                (v.pdf_fwd, qs_minus_rev, v.delta)
+            } else {
+                (v.pdf_fwd, v.pdf_rev, v.delta)
+            }
+        };
 
         let remap = |f: f32| if f != 0.0 { f } else { 1.0 };
         let mut sum = 0.0f32;
         let mut ri = 1.0f32;
         // Strategies that sample more of the path from the light's side.
+        let mut next = cam_at(t - 1);
         for i in (1..t).rev() {
-            ri *= remap(cf[i].1) / remap(cf[i].0);
-            if !cf[i].2 && !cf[i - 1].2 && self.allowed(s + t - i, i) {
+            let (cur, prev) = (next, cam_at(i - 1));
+            ri *= remap(cur.1) / remap(cur.0);
+            if !cur.2 && !prev.2 && self.allowed(s + t - i, i) {
                 sum += ri * ri;
             }
+            next = prev;
         }
         // Strategies that sample more of it from the camera's side.
         ri = 1.0;
         for i in (0..s).rev() {
-            ri *= remap(lf[i].1) / remap(lf[i].0);
-            let delta_light = if i > 0 {
-                lf[i - 1].2
-            } else {
-                let v0 = if s == 1 { sampled } else { light.first() };
-                v0.is_some_and(|v| v.is_delta_light(scene))
-            };
-            if !lf[i].2 && !delta_light && self.allowed(i, s + t - i) {
+            let cur = light_at(i);
+            ri *= remap(cur.1) / remap(cur.0);
+            let delta_light = if i > 0 { light_at(i - 1).2 } else { light_vertex(0).is_some_and(|v| v.is_delta_light(scene)) };
+            if !cur.2 && !delta_light && self.allowed(i, s + t - i) {
                 sum += ri * ri;
             }
         }
