@@ -10,7 +10,7 @@
 //! [`render_progressive`] also resumes from a saved state.
 
 use crate::film::{FilmState, Image, Layout, PixelFormat, Sink, StateHeader};
-use crate::integrator::{Integrator, ParticleTracer};
+use crate::integrator::{Bdpt, BdptScratch, Integrator, ParticleTracer};
 use crate::spectrum::Rgb;
 use crate::sampler::Sampler;
 use crate::scene::Scene;
@@ -72,6 +72,11 @@ fn estimate(scene: &Scene, polarized: bool, passes: bool) -> u64 {
     let copies = if passes { 2 } else { 1 };
     if let Integrator::Particle(_) = &scene.integrator {
         return copies * pixels * 3 * 16 + pixels * (12 + 12) + threads * (w + 2 * border) * (h + 2 * border) * 3 * 16;
+    }
+    if let Integrator::Bdpt(_) = &scene.integrator {
+        // Camera sums (RGB, weight, alpha) and splats, whole-window sinks per worker.
+        let stride = 4 + 3 + 1;
+        return copies * pixels * stride * 16 + pixels * (16 + 12) + threads * (w + 2 * border) * (h + 2 * border) * stride * 16;
     }
     let extra = scene.integrator.channel_names().len() as u64 + 1;
     let stride = 4 + extra + if polarized { 9 } else { 0 };
@@ -351,7 +356,7 @@ fn state_header<S: Spectrum>(scene: &Scene) -> StateHeader {
         sample_count: scene.sampler.sample_count,
         fingerprint: scene_fingerprint::<S>(scene),
         pixel_format: format_name,
-        layout: Layout { camera: !particle, splats: particle, stokes: S::POLARIZED && !particle, extra },
+        layout: Layout { camera: !particle, splats: particle || matches!(scene.integrator, Integrator::Bdpt(_)), stokes: S::POLARIZED && !particle, extra },
         ranges: vec![],
         complete: true,
         samples_taken: 0,
@@ -369,6 +374,11 @@ fn render_range<S: Spectrum>(scene: &Scene, options: &RenderOptions, threads: us
     }
     let (taken, invalid) = if let Integrator::Particle(tracer) = &scene.integrator {
         render_particles::<S>(scene, tracer, options, &pool, &samples, &mut state, bar)
+    } else if let Integrator::Bdpt(bdpt) = &scene.integrator {
+        if S::POLARIZED {
+            anyhow::bail!("the bdpt integrator renders in the rgb and spectral modes only, not in a polarized mode; use path for polarization");
+        }
+        render_bdpt::<S>(scene, bdpt, options, &pool, &samples, &mut state, bar)?
     } else {
         render_camera::<S>(scene, options, &pool, &samples, &mut state, bar)
     };
@@ -530,6 +540,88 @@ fn render_particles<S: Spectrum>(
         state.add_sink(sink);
     }
     (taken.into_inner(), invalid.into_inner())
+}
+
+/// Bidirectional path tracing: every (pixel, sample index) of the crop
+/// window traces a camera subpath (from `Sampler::start` of the scene's
+/// sampler) and a light subpath (from a sampler of its own seed, as
+/// [`render_particles`]); the pixel estimate goes through the filter as a
+/// camera sample, the light-image connections are splatted. Each worker
+/// keeps a [`Sink`] over the whole window (splats land anywhere); rows of
+/// pixels are the units of work, so the image is the same for any thread
+/// count and pass split. The image divides splat sums by the number of
+/// light subpaths, width · height · spp.
+fn render_bdpt<S: Spectrum>(
+    scene: &Scene,
+    bdpt: &Bdpt,
+    options: &RenderOptions,
+    pool: &rayon::ThreadPool,
+    samples: &Range<u32>,
+    state: &mut FilmState,
+    bar: &ProgressBar,
+) -> anyhow::Result<(u64, u64)> {
+    let crate::sensor::Camera::Perspective(camera) = &scene.camera else {
+        anyhow::bail!("bdpt needs a perspective sensor");
+    };
+    let [ox, oy, w, h] = scene.film.crop;
+    let offset = Vec2::new(ox as f32, oy as f32);
+    let inv_size = Vec2::new(1.0 / scene.film.width as f32, 1.0 / scene.film.height as f32);
+    let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
+    let layout = state.header.layout.clone();
+    let n_extra = layout.extra.len();
+    let alpha = scene.film.pixel_format.has_alpha();
+    let next_row = AtomicU64::new(0);
+    let taken = AtomicU64::new(0);
+    let invalid = AtomicU64::new(0);
+    let light = crate::sampler::SamplerSpec { seed: scene.sampler.seed ^ 0x6264_7074_6c69_6768, ..scene.sampler };
+    let sinks: Vec<Sink> = pool.broadcast(|_| {
+        let mut sink = Sink::new(&layout, -border, -border, (w as i32 + 2 * border) as usize, (h as i32 + 2 * border) as usize);
+        let mut scratch = BdptScratch::<S>::default();
+        let mut extra = vec![0.0f32; n_extra];
+        let mut bad = 0u64;
+        loop {
+            let y = next_row.fetch_add(1, Ordering::Relaxed);
+            if y >= h as u64 || options.stopped() {
+                break;
+            }
+            let y = y as u32;
+            taken.fetch_add(w as u64 * samples.len() as u64, Ordering::Relaxed);
+            for x in 0..w {
+                for index in samples.clone() {
+                    let mut sampler = Sampler::start(&scene.sampler, x + ox, y + oy, index);
+                    let mut wl = S::sample_wavelengths(sampler.next_1d());
+                    let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+                    let ray = scene.camera.sample_ray((pos + offset) * inv_size, &mut sampler);
+                    let mut light_sampler = Sampler::start(&light, x + ox, y + oy, index);
+                    let (l, a) = bdpt.sample::<S>(scene, camera, ray, &mut sampler, &mut light_sampler, &mut wl, &mut scratch, &mut |p, rgb| {
+                        if rgb.is_finite() {
+                            sink.splat(&scene.film.filter, p - offset, rgb);
+                        } else {
+                            bad += 1;
+                        }
+                    });
+                    let mut rgb = l.to_rgb(&wl);
+                    if !rgb.is_finite() {
+                        bad += 1;
+                        rgb = Rgb::BLACK;
+                    }
+                    if alpha && n_extra > 0 {
+                        extra[0] = a;
+                    }
+                    sink.add_sample(&scene.film.filter, pos, rgb, None, &extra);
+                }
+            }
+            bar.inc(w as u64 * samples.len() as u64);
+        }
+        if bad > 0 {
+            invalid.fetch_add(bad, Ordering::Relaxed);
+        }
+        sink
+    });
+    for sink in &sinks {
+        state.add_sink(sink);
+    }
+    Ok((taken.into_inner(), invalid.into_inner()))
 }
 
 /// S1, S2, S3 (as film RGB) of the light a camera ray along `d` brings back,

@@ -288,7 +288,7 @@ fn objects_declared_at_the_top_level_for_reference() {
 fn plugins_mitsuba_3_removed_say_what_to_use() {
     let path = std::env::temp_dir().join("snell-documents-removed.xml");
     for (body, line, instead) in [
-        ("    <integrator type=\"bdpt\"/>\n", 7, "use path"),
+        ("    <integrator type=\"mlt\"/>\n", 7, "use path"),
         ("    <shape type=\"sphere\"><bsdf type=\"phong\"/></shape>\n", 7, "Mitsuba 3 has no such BSDF"),
     ] {
         let text = format!("<scene version=\"0.6.0\">\n    {SENSOR}\n{body}</scene>\n");

@@ -506,6 +506,16 @@ impl LightSelector {
         }
     }
 
+    /// The probability with which [`LightSelector::select_emission`] picks
+    /// emitter `index`.
+    pub fn pmf_emission(&self, index: usize) -> f32 {
+        match self.strategy {
+            LightSampling::Uniform => self.pmf(index, &ShadingPoint::at(Vec3::ZERO)),
+            _ if index < self.count && self.power.sum() > 0.0 => self.power.pmf(index),
+            _ => 0.0,
+        }
+    }
+
     fn select_power(&self, u: f32) -> Option<(usize, f32, f32)> {
         if self.count == 0 || !(self.power.sum() > 0.0) {
             return None;

@@ -19,7 +19,7 @@ use crate::geometry::serialized;
 use crate::geometry::sphere::Sphere;
 use crate::geometry::{Shape, ShapeGeometry};
 use crate::emitter::{LightSampling, LightSelector};
-use crate::integrator::{Aov, AovKind, Direct, Integrator, Moment, ParticleTracer, PathTracer};
+use crate::integrator::{Aov, AovKind, Bdpt, Direct, Integrator, Moment, ParticleTracer, PathTracer};
 use crate::math::Transform;
 use crate::sampler::SamplerSpec;
 use crate::sensor::perspective::{focal_length_fov, horizontal_fov, parse_focal_length};
@@ -44,7 +44,7 @@ pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
 pub const SAMPLERS: [&str; 7] = crate::sampler::NAMES;
-pub const INTEGRATORS: [&str; 6] = ["direct", "path", "ptracer", "stokes", "aov", "moment"];
+pub const INTEGRATORS: [&str; 7] = ["direct", "path", "ptracer", "bdpt", "stokes", "aov", "moment"];
 
 /// The most samples per pixel, from the scene or from `--spp` (Mitsuba's
 /// sample counts are 32-bit; 2^24 keeps per-pixel sums exact in f32 weights).
@@ -372,6 +372,18 @@ impl Loader {
                 };
                 return Err(SceneError::at(loc, format!("ptracer cannot start light paths on a \"{kind}\" emitter; use the path integrator"))
                     .with_choices(&["area", "point", "spot", "projector"]));
+            }
+        }
+        if let (Integrator::Bdpt(_), Some(loc)) = (&integrator, &integrator_loc) {
+            // Light subpaths end in a pinhole; they start on finite emitters,
+            // and the emitters at infinity light through s = 0 and s = 1.
+            if !matches!(camera, Camera::Perspective(_)) {
+                return Err(SceneError::at(loc, "bdpt needs a perspective sensor (light subpaths cannot be connected to an orthographic or thin-lens camera)")
+                    .with_choices(&["perspective"]));
+            }
+            if self.emitters.iter().any(|e| matches!(e, Emitter::Projector(_))) {
+                return Err(SceneError::at(loc, "bdpt cannot use a \"projector\" emitter (no density for its emitted directions); use path or ptracer")
+                    .with_choices(&["area", "point", "spot", "constant", "envmap", "directional"]));
             }
         }
         self.resolve_mesh_attributes()?;
@@ -1136,6 +1148,23 @@ impl Loader {
                     hide_emitters: props.bool("hide_emitters", false)?,
                 })
             }
+            "bdpt" => {
+                let max_depth = props.int_checked("max_depth", -1, |v| v >= -1, "-1 (unlimited) or a non-negative integer")?;
+                let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
+                let strategy_s = props.int_checked("strategy_s", -1, |v| (-1..=1 << 20).contains(&v), "-1 (every strategy) or a non-negative integer")?;
+                let strategy_t = props.int_checked("strategy_t", -1, |v| v == -1 || (1..=1 << 20).contains(&v), "-1 (every strategy) or a positive integer")?;
+                self.light_sampling(&props, &LightSampling::NAMES)?;
+                Integrator::Bdpt(Bdpt {
+                    max_depth: self.depth_limit(&props, "max_depth", max_depth),
+                    rr_depth: self.depth_limit(&props, "rr_depth", rr_depth),
+                    light_image: props.bool("light_image", true)?,
+                    sample_direct: props.bool("sample_direct", true)?,
+                    hide_emitters: props.bool("hide_emitters", false)?,
+                    strategy_s: u32::try_from(strategy_s).ok(),
+                    strategy_t: u32::try_from(strategy_t).ok(),
+                    mis: props.bool("mis", true)?,
+                })
+            }
             _ => return Err(unknown_plugin(node, &INTEGRATORS)),
         };
         props.finish()?;
@@ -1167,7 +1196,7 @@ impl Loader {
         let mut unnamed = 0;
         for child in props.children_of(Kind::Integrator) {
             let n = self.resolve(child)?;
-            if matches!(n.plugin.as_str(), "ptracer" | "stokes") {
+            if matches!(n.plugin.as_str(), "ptracer" | "bdpt" | "stokes") {
                 return Err(SceneError::at(&n.loc, format!("the {} integrator nests camera-path integrators; \"{}\" cannot be nested", node.plugin, n.plugin))
                     .with_choices(&["direct", "path", "aov", "moment"]));
             }

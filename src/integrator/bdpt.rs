@@ -1,0 +1,665 @@
+//! `bdpt` — bidirectional path tracing (Veach 1997, ch. 10) with multiple
+//! importance sampling over every connection strategy.
+//!
+//! Each camera sample traces a camera subpath z₀ (the pinhole) z₁ … and a
+//! light subpath y₀ (a point on an emitter) y₁ …, and joins them in every
+//! way: the strategy (s, t) uses the first s light vertices and the first t
+//! camera vertices, one path of s + t − 1 segments.
+//!
+//! - s = 0: the camera subpath hits an emitter (or leaves the scene into an
+//!   environment emitter);
+//! - s = 1: next-event estimation — a point on an emitter is sampled from
+//!   z_{t−1} (as `path` does) and connected to it;
+//! - t = 1: a light vertex y_{s−1} is connected to the pinhole and splatted
+//!   onto the film where it projects (as `ptracer` does);
+//! - s, t ≥ 2: y_{s−1} and z_{t−1} are joined by a shadow ray.
+//!
+//! Every strategy's estimate is weighted by the power heuristic
+//!
+//! w_{s,t} = p_{s,t}² / Σ_{i} p_{i,s+t−i}²,
+//!
+//! p_{i,j} being the density (area measure) with which strategy (i, j)
+//! samples the same path. The ratios p_{i+1}/p_i need only each vertex's
+//! forward and reverse densities, so the sum costs one pass over the two
+//! subpaths (pbrt-v4's formulation). Strategies that cannot sample a path
+//! are left out of its sum: connections at a vertex scattered by a delta
+//! lobe (ideal mirror or glass), s = 0 for a point or spot light, and the
+//! strategies switched off by `light_image` / `sample_direct`; so the
+//! weights of the remaining strategies still sum to one and the image is
+//! unbiased. Pixel estimates (t ≥ 2) go through the reconstruction filter;
+//! splats (t = 1) are divided by the number of light subpaths, width ·
+//! height · spp, as `ptracer`'s are.
+//!
+//! Light subpaths are sampled in importance transport with Veach's
+//! correction for shading normals, and both subpaths end by Russian
+//! roulette from depth `rr_depth` on. A dispersive BSDF met on either
+//! subpath cuts the sample down to its hero wavelength.
+//!
+//! Emitters: light subpaths start on `area`, `point` and `spot` emitters.
+//! Environment (`constant`, `envmap`) and `directional` emitters light the
+//! scene through s = 0 and s = 1 only (weighted against each other as in
+//! `path`); a `projector` is refused. Sensor: `perspective`. Modes: `rgb`
+//! and `spectral` (the polarized modes are refused).
+//!
+//! | parameter | type | default | meaning |
+//! |---|---|---|---|
+//! | `max_depth` | integer | -1 | longest path in segments; -1 = unlimited, 1 = emitters seen directly |
+//! | `rr_depth` | integer | 5 | depth at which Russian roulette starts |
+//! | `light_image` | boolean | true | use the t = 1 strategies (light vertices connected to the camera) |
+//! | `sample_direct` | boolean | true | use the s = 1 strategies (emitter sampling) |
+//! | `hide_emitters` | boolean | false | emitters seen directly are black (they still block what is behind them) |
+//! | `light_sampling` | string | `uniform` | emitter choice for s = 1 (`uniform`, `power`, `bvh`); light subpaths start by power unless `uniform` |
+//! | `strategy_s`, `strategy_t` | integer | -1 | debugging: keep only the contributions of strategies with this s (t); -1 = all |
+//! | `mis` | boolean | true | debugging: `false` weights every strategy kept by 1 (with `strategy_t` = 1: pure light tracing) |
+//!
+//! Mitsuba 0.6's names (`maxDepth`, `rrDepth`, `lightImage`, `sampleDirect`)
+//! are read as these.
+//!
+//! ```xml
+//! <integrator type="bdpt">
+//!     <integer name="max_depth" value="8"/>
+//!     <boolean name="light_image" value="true"/>
+//! </integrator>
+//! ```
+
+use crate::bsdf::{BsdfContext, Lobe, TransportMode};
+use crate::emitter::{Emitter, ShadingPoint};
+use crate::geometry::ray::offset_origin;
+use crate::geometry::{Ray, SurfaceInteraction};
+use crate::integrator::ptracer::shading_correction;
+use crate::math::sampling::uniform_cone_pdf;
+use crate::math::{SHADOW_EPSILON, mis_power};
+use crate::sampler::Sampler;
+use crate::scene::Scene;
+use crate::sensor::Perspective;
+use crate::spectrum::{Rgb, Spectrum};
+use glam::{Vec2, Vec3};
+use std::f32::consts::PI;
+
+#[derive(Clone, Debug)]
+pub struct Bdpt {
+    /// `u32::MAX` for unlimited.
+    pub max_depth: u32,
+    pub rr_depth: u32,
+    pub light_image: bool,
+    pub sample_direct: bool,
+    pub hide_emitters: bool,
+    /// Keep only the strategies with this s / t (debugging; weights unchanged).
+    pub strategy_s: Option<u32>,
+    pub strategy_t: Option<u32>,
+    /// Weight strategies by MIS (else by 1: only meaningful with one strategy kept).
+    pub mis: bool,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Kind {
+    /// The pinhole.
+    Camera,
+    /// A point on emitter `index` (the first vertex of a light subpath).
+    Light(usize),
+    /// A point on a surface.
+    Surface,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Vertex<S> {
+    kind: Kind,
+    p: Vec3,
+    /// Geometric normal, zero where there is none (pinhole, point light):
+    /// converts solid-angle densities into area densities at this vertex.
+    ng: Vec3,
+    /// Normal that emission is measured from (area lights).
+    ns: Vec3,
+    si: Option<SurfaceInteraction>,
+    ctx: BsdfContext,
+    /// Throughput of the subpath up to and including this vertex.
+    beta: S,
+    /// Scattered by a delta lobe: cannot be connected.
+    delta: bool,
+    /// Area density of this vertex sampled by its own subpath, and by the other one.
+    pdf_fwd: f32,
+    pdf_rev: f32,
+}
+
+/// How a camera subpath left the scene.
+#[derive(Clone, Copy, Debug)]
+struct Escape<S> {
+    d: Vec3,
+    beta: S,
+    /// Solid-angle density of the direction (BSDF sample); `delta` if not MIS-able.
+    pdf: f32,
+    delta: bool,
+}
+
+/// The subpaths of one sample, kept between samples to reuse their memory.
+pub struct BdptScratch<S> {
+    camera: Vec<Vertex<S>>,
+    light: Vec<Vertex<S>>,
+}
+
+impl<S> Default for BdptScratch<S> {
+    fn default() -> Self {
+        BdptScratch { camera: Vec::new(), light: Vec::new() }
+    }
+}
+
+/// What the estimators need besides the vertices.
+struct Ctx<'a, S: Spectrum> {
+    scene: &'a Scene,
+    camera: &'a Perspective,
+    wl: &'a S::Wavelengths,
+}
+
+fn other(mode: TransportMode) -> TransportMode {
+    match mode {
+        TransportMode::Radiance => TransportMode::Importance,
+        TransportMode::Importance => TransportMode::Radiance,
+    }
+}
+
+/// Solid-angle density with which the pinhole emits a camera ray along the
+/// unit direction `d` (the film position uniform over the image): 1/(A cos³θ),
+/// A the film's area at unit depth; 0 outside the image.
+fn camera_pdf(camera: &Perspective, d: Vec3) -> f32 {
+    let l = camera.to_world.inverse_vector(d);
+    let len = l.length();
+    if !(l.z > 0.0 && len > 0.0) {
+        return 0.0;
+    }
+    let tan_y = camera.tan_half_x / camera.aspect;
+    let (sx, sy) = (l.x / (l.z * camera.tan_half_x), l.y / (l.z * tan_y));
+    let film = Vec2::new(0.5 * (1.0 - sx), 0.5 * (1.0 - sy)) - camera.principal_offset;
+    if !((0.0..=1.0).contains(&film.x) && (0.0..=1.0).contains(&film.y)) {
+        return 0.0;
+    }
+    let cos = l.z / len;
+    1.0 / (4.0 * camera.tan_half_x * tan_y * cos * cos * cos)
+}
+
+/// Solid-angle density with which emitter `e` emits a light path along `d`
+/// from a point with emission normal `ns` ([`Emitter::sample_ray`]).
+fn emission_pdf(scene: &Scene, e: usize, ns: Vec3, d: Vec3) -> f32 {
+    match &scene.emitters[e] {
+        Emitter::Area(_) => ns.dot(d).max(0.0) / PI,
+        Emitter::Point(_) => 1.0 / (4.0 * PI),
+        Emitter::Spot(s) if s.axis.dot(d) > s.cos_cutoff => uniform_cone_pdf(s.cos_cutoff),
+        _ => 0.0,
+    }
+}
+
+/// Density with which a light subpath starts at a point of emitter `e`:
+/// its choice times the area density (area lights sample uniformly by area).
+fn origin_pdf(scene: &Scene, e: usize) -> f32 {
+    let pmf = scene.lights.pmf_emission(e);
+    match &scene.emitters[e] {
+        Emitter::Area(a) => {
+            let area = scene.shapes[a.shape as usize].area();
+            if area > 0.0 { pmf / area } else { 0.0 }
+        }
+        _ => pmf,
+    }
+}
+
+/// `pdf` (per unit solid angle at `from`) as a density per unit area at `to`.
+fn to_area<S>(pdf: f32, from: Vec3, to: &Vertex<S>) -> f32 {
+    let v = to.p - from;
+    let d2 = v.length_squared();
+    if !(d2 > 0.0) {
+        return 0.0;
+    }
+    let mut p = pdf / d2;
+    if to.ng != Vec3::ZERO {
+        p *= to.ng.dot(v).abs() / d2.sqrt();
+    }
+    p
+}
+
+/// The fraction of light passing between points `a` and `b` (geometric
+/// normals `na`, `nb`; zero for a point).
+fn transmittance(scene: &Scene, a: Vec3, na: Vec3, b: Vec3, nb: Vec3) -> f32 {
+    let d = b - a;
+    let o = if na != Vec3::ZERO { offset_origin(a, na, d) } else { a };
+    let target = if nb != Vec3::ZERO { offset_origin(b, nb, -d) } else { b };
+    let v = target - o;
+    let len = v.length();
+    if !(len > 0.0) {
+        return 0.0;
+    }
+    scene.transmittance(&Ray { o, d: v / len, tmax: len * (1.0 - SHADOW_EPSILON) })
+}
+
+impl<S: Spectrum> Vertex<S> {
+    fn surface(si: SurfaceInteraction, ctx: BsdfContext, beta: S) -> Self {
+        Vertex { kind: Kind::Surface, p: si.p, ng: si.n, ns: si.frame.n, si: Some(si), ctx, beta, delta: false, pdf_fwd: 0.0, pdf_rev: 0.0 }
+    }
+
+    /// Whether a shadow ray may end here (a BSDF with a smooth lobe).
+    fn connectible(&self, scene: &Scene) -> bool {
+        match (&self.kind, &self.si) {
+            (Kind::Surface, Some(si)) => scene.bsdf(si).lobes().intersects(Lobe::SMOOTH),
+            _ => true,
+        }
+    }
+
+    fn is_delta_light(&self, scene: &Scene) -> bool {
+        matches!(self.kind, Kind::Light(e) if scene.emitters[e].is_delta())
+    }
+
+    /// Area density at `next` with which this vertex, reached from `prev`,
+    /// samples `next` in transport `mode`.
+    fn pdf(&self, c: &Ctx<S>, prev: Option<&Vertex<S>>, next: &Vertex<S>, mode: TransportMode) -> f32 {
+        let w = (next.p - self.p).normalize_or_zero();
+        if w == Vec3::ZERO {
+            return 0.0;
+        }
+        let solid = match self.kind {
+            Kind::Camera => camera_pdf(c.camera, w),
+            Kind::Light(e) => emission_pdf(c.scene, e, self.ns, w),
+            Kind::Surface => {
+                let (Some(si), Some(prev)) = (&self.si, prev) else { return 0.0 };
+                let wp = (prev.p - self.p).normalize_or_zero();
+                let ctx = BsdfContext { mode, ..self.ctx };
+                c.scene.bsdf(si).pdf::<S>(&ctx, si, si.to_local(wp), si.to_local(w), c.wl)
+            }
+        };
+        to_area(solid, self.p, next)
+    }
+
+    /// The emitter at this surface vertex, if its shape emits.
+    fn emitter(&self, scene: &Scene) -> Option<usize> {
+        let si = self.si.as_ref()?;
+        scene.shapes[si.shape as usize].emitter.map(|e| e as usize)
+    }
+}
+
+impl Bdpt {
+    /// Whether strategy (s, t) is used at all.
+    fn allowed(&self, s: usize, t: usize) -> bool {
+        t >= 1 && s + t >= 2 && !(s == 1 && t == 1) && (t != 1 || self.light_image) && (s != 1 || self.sample_direct)
+    }
+
+    /// Whether strategy (s, t)'s contributions are kept (debugging filters).
+    fn kept(&self, s: usize, t: usize) -> bool {
+        self.strategy_s.is_none_or(|v| v as usize == s) && self.strategy_t.is_none_or(|v| v as usize == t)
+    }
+
+    /// One camera sample through `ray`: returns the pixel estimate (strategies
+    /// t ≥ 2) and its alpha, and hands the t = 1 contributions to `splat` as
+    /// (film position in pixels of the full film, RGB value per light subpath).
+    /// `sampler` drives the camera subpath, `light_sampler` the light subpath.
+    #[allow(clippy::too_many_arguments)]
+    pub fn sample<S: Spectrum>(
+        &self,
+        scene: &Scene,
+        camera: &Perspective,
+        ray: Ray,
+        sampler: &mut Sampler,
+        light_sampler: &mut Sampler,
+        wl: &mut S::Wavelengths,
+        scratch: &mut BdptScratch<S>,
+        splat: &mut impl FnMut(Vec2, Rgb),
+    ) -> (S, f32) {
+        let BdptScratch { camera: cam, light } = scratch;
+        cam.clear();
+        light.clear();
+
+        // Camera subpath: the pinhole, then up to max_depth surface vertices.
+        cam.push(Vertex {
+            kind: Kind::Camera,
+            p: camera.origin(),
+            ng: Vec3::ZERO,
+            ns: Vec3::ZERO,
+            si: None,
+            ctx: BsdfContext::RADIANCE,
+            beta: S::splat(1.0),
+            delta: false,
+            pdf_fwd: 1.0,
+            pdf_rev: 0.0,
+        });
+        let max_camera = (self.max_depth as usize).saturating_add(1);
+        let escape = self.walk(scene, ray, S::splat(1.0), camera_pdf(camera, ray.d), sampler, wl, TransportMode::Radiance, max_camera, cam);
+        let alpha = if cam.len() > 1 || (escape.is_some() && scene.environment.is_some() && !self.hide_emitters) { 1.0 } else { 0.0 };
+
+        // Light subpath: a point on an emitter, then up to max_depth − 1 surface vertices.
+        let max_light = self.max_depth as usize;
+        // (A lone emitter point would only serve s = 1, t = 1, which is not used.)
+        if max_light >= 2 {
+            if let Some((e, pmf, _)) = scene.lights.select_emission(light_sampler.next_1d()) {
+                let (u_pos, u_dir) = (light_sampler.next_2d(), light_sampler.next_2d());
+                if let Some(em) = scene.emitters[e].sample_ray::<S>(scene, u_pos, u_dir, wl) {
+                    light.push(Vertex {
+                        kind: Kind::Light(e),
+                        p: em.p,
+                        ng: em.n,
+                        ns: em.n,
+                        si: None,
+                        ctx: BsdfContext::IMPORTANCE,
+                        beta: S::zero(),
+                        delta: false,
+                        pdf_fwd: origin_pdf(scene, e),
+                        pdf_rev: 0.0,
+                    });
+                    let beta = em.weight / pmf;
+                    if beta.max_component() > 0.0 {
+                        self.walk(scene, em.ray, beta, em.pdf_dir, light_sampler, wl, TransportMode::Importance, max_light, light);
+                    }
+                }
+            }
+        }
+
+        // All connections, with the wavelengths as the subpaths left them.
+        let wl: &S::Wavelengths = wl;
+        let c = Ctx::<S> { scene, camera, wl };
+        let size = Vec2::new(scene.film.width as f32, scene.film.height as f32);
+        let mut result = S::zero();
+        let (nc, nl) = (cam.len(), light.len());
+        for t in 1..=nc {
+            // One emitter sample per camera vertex, drawn whether used or not.
+            let u_direct = if t >= 2 { sampler.next_2d() } else { Vec2::ZERO };
+            for s in 0..=nl.max(1) {
+                if !self.allowed(s, t) || !self.kept(s, t) || (s + t - 1) as u64 > self.max_depth as u64 {
+                    continue;
+                }
+                if s >= 2 && s > nl {
+                    continue;
+                }
+                if t == 1 {
+                    if let Some((film, value)) = self.connect_camera(&c, cam, light, s) {
+                        splat(film * size, value.to_rgb(wl));
+                    }
+                } else {
+                    result += self.connect(&c, cam, light, s, t, u_direct);
+                }
+            }
+        }
+        if let Some(esc) = escape {
+            result += self.escaped(&c, cam, &esc);
+        }
+        (result, alpha)
+    }
+
+    /// Extends `path` (whose last vertex is where `ray` starts) by random
+    /// walk; `pdf` is the solid-angle density of `ray`'s direction. Returns
+    /// how a camera walk left the scene.
+    #[allow(clippy::too_many_arguments)]
+    fn walk<S: Spectrum>(
+        &self,
+        scene: &Scene,
+        mut ray: Ray,
+        mut beta: S,
+        mut pdf: f32,
+        sampler: &mut Sampler,
+        wl: &mut S::Wavelengths,
+        mode: TransportMode,
+        max_vertices: usize,
+        path: &mut Vec<Vertex<S>>,
+    ) -> Option<Escape<S>> {
+        let mut ctx = BsdfContext::new(mode);
+        let start = beta.max_component();
+        let mut eta = 1.0f32;
+        let mut delta = true;
+        while path.len() < max_vertices {
+            let Some(si) = scene.intersect_path(&ray, false, sampler) else {
+                return (mode == TransportMode::Radiance).then_some(Escape { d: ray.d, beta, pdf, delta });
+            };
+            let prev_p = path[path.len() - 1].p;
+            let mut v = Vertex::surface(si, ctx, beta);
+            v.pdf_fwd = to_area(pdf, prev_p, &v);
+            path.push(v);
+            if path.len() >= max_vertices {
+                break;
+            }
+            let bsdf = scene.bsdf(&si);
+            // Past a dispersive interface the path holds for the hero wavelength only.
+            if bsdf.disperses() {
+                S::terminate_secondary(wl);
+            }
+            let Some(bs) = bsdf.sample::<S>(&ctx, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
+            delta = bs.lobe.intersects(Lobe::DELTA);
+            let mut weight = bs.weight;
+            if mode == TransportMode::Importance {
+                weight = weight * shading_correction(&si, si.wi, bs.wo);
+            }
+            beta *= weight;
+            let rev = if delta { 0.0 } else { bsdf.pdf::<S>(&BsdfContext { mode: other(mode), ..ctx }, &si, bs.wo, si.wi, wl) };
+            pdf = if delta { 0.0 } else { bs.pdf };
+            let n = path.len();
+            path[n - 1].delta = delta;
+            path[n - 2].pdf_rev = to_area(rev, si.p, &path[n - 2]);
+            ctx = ctx.following(bs.lobe);
+            eta *= bs.eta;
+            let d = si.to_world(bs.wo);
+            ray = Ray::new(si.spawn_origin(d), d);
+
+            let t_max = beta.max_component() / start;
+            if !(t_max > 0.0) {
+                break;
+            }
+            // Segments before the one just sampled: n − 1 (as `path` and `ptracer` count).
+            if (n - 1) as u32 >= self.rr_depth {
+                let q = if mode == TransportMode::Radiance { t_max * eta * eta } else { t_max }.min(0.95);
+                if !(sampler.next_1d() < q) {
+                    break;
+                }
+                beta *= 1.0 / q;
+            }
+        }
+        None
+    }
+
+    /// Strategy (s, 1): light vertex y_{s−1} seen by the pinhole; its film
+    /// position ([0,1]²) and value per light subpath.
+    fn connect_camera<S: Spectrum>(&self, c: &Ctx<S>, cam: &[Vertex<S>], light: &[Vertex<S>], s: usize) -> Option<(Vec2, S)> {
+        let qs = light.get(s.checked_sub(1)?)?;
+        let si = qs.si.as_ref()?;
+        if !qs.connectible(c.scene) {
+            return None;
+        }
+        let conn = c.camera.connect(qs.p, c.scene.film.width, c.scene.film.height)?;
+        let wo = si.to_local(conn.d);
+        let f: S = c.scene.bsdf(si).eval(&qs.ctx, si, si.wi, wo, c.wl);
+        let correction = shading_correction(si, si.wi, wo);
+        if f.is_zero() || !(correction > 0.0) {
+            return None;
+        }
+        let tr = transmittance(c.scene, qs.p, qs.ng, cam[0].p, Vec3::ZERO);
+        if !(tr > 0.0) {
+            return None;
+        }
+        let value = qs.beta * f * (tr * correction * conn.importance / (conn.dist * conn.dist));
+        let w = self.mis_weight(c, cam, light, Some(&cam[0]), s, 1);
+        Some((conn.film, value * w))
+    }
+
+    /// Strategy (s, t), t ≥ 2: the pixel estimate's share.
+    fn connect<S: Spectrum>(&self, c: &Ctx<S>, cam: &[Vertex<S>], light: &[Vertex<S>], s: usize, t: usize, u_direct: Vec2) -> S {
+        let scene = c.scene;
+        let pt = &cam[t - 1];
+        let Some(si) = pt.si.as_ref() else { return S::zero() };
+        if s == 0 {
+            if t == 2 && self.hide_emitters {
+                return S::zero();
+            }
+            let Some(le) = scene.emitted::<S>(si, c.wl) else { return S::zero() };
+            let value = pt.beta * le;
+            if value.is_zero() {
+                return S::zero();
+            }
+            return value * self.mis_weight(c, cam, light, None, 0, t);
+        }
+        if !pt.connectible(scene) {
+            return S::zero();
+        }
+        let bsdf = scene.bsdf(si);
+        if s == 1 {
+            // Next-event estimation from z_{t−1}.
+            let Some((e, pmf, ux)) = scene.select_emitter(u_direct.x, &ShadingPoint::from(si)) else { return S::zero() };
+            let Some(es) = scene.emitters[e].sample_direction::<S>(scene, si.p, Vec2::new(ux, u_direct.y), c.wl) else { return S::zero() };
+            let wo = si.to_local(es.d);
+            let f: S = bsdf.eval(&pt.ctx, si, si.wi, wo, c.wl);
+            if f.is_zero() || es.weight.is_zero() {
+                return S::zero();
+            }
+            let tr = match es.p {
+                Some(p) => transmittance(scene, si.p, si.n, p, es.n),
+                None => {
+                    let o = si.spawn_origin(es.d);
+                    scene.transmittance(&Ray { o, d: es.d, tmax: f32::INFINITY })
+                }
+            };
+            if !(tr > 0.0) {
+                return S::zero();
+            }
+            let value = pt.beta * f * es.weight * (tr / pmf);
+            let w = match es.p {
+                // Emitters at infinity: against the camera subpath escaping (s = 0).
+                None if es.delta || !self.mis => 1.0,
+                None => mis_power(es.pdf * pmf, bsdf.pdf::<S>(&pt.ctx, si, si.wi, wo, c.wl)),
+                Some(p) => {
+                    let sampled = Vertex {
+                        kind: Kind::Light(e),
+                        p,
+                        ng: es.n,
+                        ns: es.n,
+                        si: None,
+                        ctx: BsdfContext::IMPORTANCE,
+                        beta: S::zero(),
+                        delta: false,
+                        pdf_fwd: origin_pdf(scene, e),
+                        pdf_rev: 0.0,
+                    };
+                    self.mis_weight(c, cam, light, Some(&sampled), 1, t)
+                }
+            };
+            return value * w;
+        }
+        // s, t ≥ 2: a shadow ray between y_{s−1} and z_{t−1}.
+        let qs = &light[s - 1];
+        let Some(sl) = qs.si.as_ref() else { return S::zero() };
+        if !qs.connectible(scene) {
+            return S::zero();
+        }
+        let v = qs.p - pt.p;
+        let d2 = v.length_squared();
+        if !(d2 > 0.0) {
+            return S::zero();
+        }
+        let w = v / d2.sqrt();
+        let f_cam: S = bsdf.eval(&pt.ctx, si, si.wi, si.to_local(w), c.wl);
+        if f_cam.is_zero() {
+            return S::zero();
+        }
+        let wo_l = sl.to_local(-w);
+        let f_light: S = scene.bsdf(sl).eval(&qs.ctx, sl, sl.wi, wo_l, c.wl);
+        let correction = shading_correction(sl, sl.wi, wo_l);
+        if f_light.is_zero() || !(correction > 0.0) {
+            return S::zero();
+        }
+        let tr = transmittance(scene, pt.p, pt.ng, qs.p, qs.ng);
+        if !(tr > 0.0) {
+            return S::zero();
+        }
+        let value = pt.beta * f_cam * f_light * qs.beta * (tr * correction / d2);
+        value * self.mis_weight(c, cam, light, None, s, t)
+    }
+
+    /// The camera subpath left the scene: an environment emitter's light,
+    /// weighted against emitter sampling (s = 1) at its last vertex.
+    fn escaped<S: Spectrum>(&self, c: &Ctx<S>, cam: &[Vertex<S>], esc: &Escape<S>) -> S {
+        let t = cam.len() + 1;
+        if (t == 2 && self.hide_emitters) || !self.kept(0, t) {
+            return S::zero();
+        }
+        let Some(le) = c.scene.environment_radiance::<S>(esc.d, c.wl) else { return S::zero() };
+        let last = cam[cam.len() - 1].si.as_ref();
+        let w = match last {
+            Some(si) if !esc.delta && self.mis && self.sample_direct => mis_power(esc.pdf, c.scene.pdf_environment(&ShadingPoint::from(si), esc.d)),
+            _ => 1.0,
+        };
+        esc.beta * le * w
+    }
+
+    /// The power-heuristic weight of strategy (s, t) for the path it made;
+    /// `sampled` is the vertex the strategy sampled anew (the emitter point
+    /// for s = 1, the pinhole for t = 1).
+    fn mis_weight<S: Spectrum>(&self, c: &Ctx<S>, cam: &[Vertex<S>], light: &[Vertex<S>], sampled: Option<&Vertex<S>>, s: usize, t: usize) -> f32 {
+        if !self.mis || s + t == 2 {
+            return 1.0;
+        }
+        let scene = c.scene;
+        let qs: Option<&Vertex<S>> = match s {
+            0 => None,
+            1 => sampled,
+            _ => light.get(s - 1),
+        };
+        let pt: &Vertex<S> = if t == 1 { sampled.unwrap_or(&cam[0]) } else { &cam[t - 1] };
+        let qs_minus = if s >= 2 { light.get(s - 2) } else { None };
+        let pt_minus = if t >= 2 { cam.get(t - 2) } else { None };
+
+        // The connection's ends scatter smoothly (their delta flags are
+        // dropped); the reverse densities of the two vertices at each end
+        // are those of this path.
+        let emitter_at_pt = if s == 0 { pt.emitter(scene) } else { None };
+        let pt_rev = match qs {
+            Some(q) => q.pdf(c, qs_minus, pt, TransportMode::Importance),
+            None => emitter_at_pt.map_or(0.0, |e| origin_pdf(scene, e)),
+        };
+        let pt_minus_rev = pt_minus.map_or(0.0, |pm| match qs {
+            Some(q) => pt.pdf(c, Some(q), pm, TransportMode::Importance),
+            None => emitter_at_pt.map_or(0.0, |e| to_area(emission_pdf(scene, e, pt.ns, (pm.p - pt.p).normalize_or_zero()), pt.p, pm)),
+        });
+        let qs_rev = qs.map_or(0.0, |q| pt.pdf(c, pt_minus, q, TransportMode::Radiance));
+        let qs_minus_rev = match (qs, qs_minus) {
+            (Some(q), Some(qm)) => q.pdf(c, Some(pt), qm, TransportMode::Radiance),
+            _ => 0.0,
+        };
+        // (forward density, reverse density, delta) of the strategy's i-th camera and light vertex.
+        let cam_at = |i: usize| {
+            let v = &cam[i];
+            if i + 1 == t {
+                (v.pdf_fwd, pt_rev, false)
+            } else if i + 2 == t {
+                (v.pdf_fwd, pt_minus_rev, v.delta)
+            } else {
+                (v.pdf_fwd, v.pdf_rev, v.delta)
+            }
+        };
+        let light_vertex = |i: usize| if s == 1 { sampled } else { light.get(i) };
+        let light_at = |i: usize| {
+            let Some(v) = light_vertex(i) else { return (0.0, 0.0, false) };
+            if i + 1 == s {
+                (v.pdf_fwd, qs_rev, false)
+            } else if i + 2 == s {
+                (v.pdf_fwd, qs_minus_rev, v.delta)
+            } else {
+                (v.pdf_fwd, v.pdf_rev, v.delta)
+            }
+        };
+
+        let remap = |f: f32| if f != 0.0 { f } else { 1.0 };
+        let mut sum = 0.0f32;
+        let mut ri = 1.0f32;
+        // Strategies that sample more of the path from the light's side.
+        let mut next = cam_at(t - 1);
+        for i in (1..t).rev() {
+            let (cur, prev) = (next, cam_at(i - 1));
+            ri *= remap(cur.1) / remap(cur.0);
+            if !cur.2 && !prev.2 && self.allowed(s + t - i, i) {
+                sum += ri * ri;
+            }
+            next = prev;
+        }
+        // Strategies that sample more of it from the camera's side.
+        ri = 1.0;
+        for i in (0..s).rev() {
+            let cur = light_at(i);
+            ri *= remap(cur.1) / remap(cur.0);
+            let delta_light = if i > 0 { light_at(i - 1).2 } else { light_vertex(0).is_some_and(|v| v.is_delta_light(scene)) };
+            if !cur.2 && !delta_light && self.allowed(i, s + t - i) {
+                sum += ri * ri;
+            }
+        }
+        let w = 1.0 / (1.0 + sum);
+        if w.is_finite() { w } else { 0.0 }
+    }
+}
