@@ -16,7 +16,7 @@
 //! sample at the primary bow and 1e-6 at the secondary, so a path-traced
 //! angular profile needs ~1e9 samples. A light path cannot be connected to
 //! a pinhole through the drop's delta surfaces either. The tests therefore
-//! repeat Descartes' own experiment (`tests/scenes/rainbow-descartes.xml`):
+//! repeat Descartes' own experiment (`scenes/rainbow-descartes.xml`):
 //! one drop in a narrow beam throws the bows back onto a white screen around
 //! the beam, where particle tracing lands every light path that leaves the
 //! drop. The physics tested is the same (the drop's deviation, Fresnel
@@ -108,7 +108,7 @@ fn descartes_angles_of_snells_water() {
 /// Renders the Descartes scene and bins its channels by the angle of each
 /// pixel from the antisolar direction. Returns the mean of each channel per bin.
 fn profile<S: snell::spectrum::Spectrum>(ior: &str, res: u32, spp: u32) -> Vec<[f64; 3]> {
-    let path = repo("tests/scenes/rainbow-descartes.xml");
+    let path = repo("scenes/rainbow-descartes.xml");
     let res = res.to_string();
     let options = snell::LoadOptions {
         params: params(&[("ior", ior), ("res", &res)]),
