@@ -22,6 +22,15 @@
 //! drop. The physics tested is the same (the drop's deviation, Fresnel
 //! weights, dispersion); only the detector differs.
 //!
+//! Per wavelength, not per channel: a display channel integrates a band of
+//! wavelengths (the red one sees 573–636 nm at half its peak), so its bow
+//! is a blend of bows 0.3° apart. The peak angle of one wavelength λ is
+//! measured directly by rendering a drop of constant index n(λ): exactly
+//! what spectral mode computes for a path whose hero wavelength is λ once
+//! it has crossed the dispersive surface (the other wavelengths are dropped
+//! there). A spectral render with dispersive water then checks the colours:
+//! each channel's bows within the Descartes angles of its band.
+//!
 //! Each pixel's angle from the antisolar direction is the angle at the drop
 //! between the beam's source and the screen point the pixel sees. Its
 //! uncertainty: the beam's directions differ by up to 0.143° across the drop
