@@ -48,10 +48,15 @@ pub fn uniform_sphere_pdf() -> f32 {
 }
 
 /// Uniform direction inside the cone of half-angle acos(cos_max) around +z.
+///
+/// Works with 1 − cos θ, not cos θ: for a narrow cone (a 0.2° spot) cos θ
+/// has only a few hundred f32 values between cos_max and 1, and sin θ taken
+/// from it would put the directions on as many rings.
 #[inline]
 pub fn square_to_uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
-    let cos_t = (1.0 - u.y) + u.y * cos_max;
-    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let one_minus_cos = u.y * (1.0 - cos_max);
+    let cos_t = 1.0 - one_minus_cos;
+    let sin_t = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
     let (s, c) = (2.0 * PI * u.x).sin_cos();
     Vec3::new(c * sin_t, s * sin_t, cos_t)
 }
@@ -155,6 +160,25 @@ mod tests {
         }
         m /= n as f32;
         assert!((m.x - 1.0 / 3.0).abs() < 0.005 && (m.y - 1.0 / 3.0).abs() < 0.005);
+    }
+
+    #[test]
+    fn narrow_cone_directions_are_not_quantized() {
+        // A 0.2° cone: uniform in solid angle means sin²θ ≈ θ² uniform, so the
+        // direction drawn with u.y = k/1000 has sin θ = sin θ_max·√(k/1000)
+        // (within 0.1 %), and a thousand u.y give a thousand distinct angles.
+        let cos_max = 0.2f32.to_radians().cos();
+        let sin_max = (1.0 - (cos_max as f64).powi(2)).sqrt();
+        let mut last = 0.0f64;
+        for k in 1..=1000 {
+            let d = square_to_uniform_cone(Vec2::new(0.3, k as f32 / 1000.0), cos_max);
+            let sin_t = (d.x as f64).hypot(d.y as f64);
+            let want = sin_max * (k as f64 / 1000.0).sqrt();
+            assert!((sin_t / want - 1.0).abs() < 1e-3, "u.y = {k}/1000: sin θ {sin_t}, want {want}");
+            assert!(sin_t > last);
+            last = sin_t;
+            assert!((d.length() - 1.0).abs() < 1e-6 && d.z >= cos_max);
+        }
     }
 
     #[test]
