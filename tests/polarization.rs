@@ -235,6 +235,29 @@ fn stokes_components_match_mitsuba() {
     stokes_match_mitsuba("tests/scenes/polarized-glass-metal.xml", None, "tests/references/polarized/polarized-glass-metal.exr", 2.5e-3);
 }
 
+/// The same against Mitsuba for rough conductors (issue 12):
+/// tests/scenes/polarized-rough.xml is the scene above with an anisotropic
+/// Beckmann copper sphere and a GGX gold sphere. This checks the rough
+/// conductor's Fresnel matrices in each microfacet's s/p frame and their
+/// rotation to and from the Stokes frames of the path's directions.
+///
+/// KNOWN DIFFERENCE (open): S0 matches (mean ratio 1.000–1.003, max |z|
+/// 2.8), but on the limb of the copper sphere S1 and S2 of the red channel
+/// only are about 10 % smaller than Mitsuba's (block (1, 3) of S1.R: −0.0078
+/// vs −0.0087, 20 σ); green and blue agree within noise, and an isotropic
+/// Beckmann or anisotropic GGX copper sphere shows the same (so not the
+/// anisotropy or the distribution). Copper polarizes green and blue light far
+/// more than red, so S1.R is a small difference of large colour-matching
+/// terms: the suspect is how a signed, strongly varying Stokes spectrum is
+/// turned into RGB (Mitsuba's `stokes` integrator converts S1–S3 itself),
+/// not the BSDF. Run with `--ignored`.
+#[test]
+#[ignore = "known difference on the anisotropic Beckmann copper sphere's S1/S2 (see the doc comment)"]
+fn rough_conductor_stokes_components_match_mitsuba() {
+    // The reference's relative standard error (tests/references/polarized/README.md).
+    stokes_match_mitsuba("tests/scenes/polarized-rough.xml", None, "tests/references/polarized/polarized-rough.exr", 2.6e-3);
+}
+
 /// Mitsuba 3.9.1's `roughdielectric` is a depolarizer in its polarized
 /// variants (its weight is `depolarizer(F…)`), so its Stokes output cannot
 /// check Snell's rough dielectric, which carries the Fresnel matrices of
