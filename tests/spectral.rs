@@ -74,15 +74,10 @@ fn caustic_box_matches_mitsuba_spectral() {
 }
 
 /// Issue 12: rough conductors (named metals with measured η(λ), k(λ); GGX
-/// and Beckmann, anisotropic, textured α) in spectral mode against
-/// Mitsuba's llvm_ad_spectral. KNOWN DIFFERENCE (open): the image means
-/// agree within 1.6 %, but the right-hand sphere (checkerboard α with rgb
-/// η/k) differs by up to 40 σ in its blocks. Not the checkerboard's `eval_1`
-/// (Mitsuba's scalar_spectral swaps the squares as its RGB variants do,
-/// checked with its Python bindings); the suspect is the spectral uplift of
-/// rgb η/k. Run with `--ignored`.
+/// and Beckmann, anisotropic, textured α; rgb η/k, which Mitsuba's spectral
+/// variants clamp to [0, 1] and uplift as a reflectance) in spectral mode
+/// against Mitsuba's llvm_ad_spectral.
 #[test]
-#[ignore = "known difference against llvm_ad_spectral on the checkerboard-alpha sphere (see the doc comment)"]
 fn rough_metals_match_mitsuba_spectral() {
     check_against_mitsuba_spectral("tests/scenes/rough-metals.xml", "tests/references/spectral/rough-metals.exr", 16);
 }

@@ -176,7 +176,7 @@ mod tests {
     #[test]
     fn blend_with_a_delta_lobe_keeps_both_parts() {
         // 40 % gold-coloured mirror, 60 % plastic (diffuse + delta coat).
-        let mirror = Bsdf::Conductor(Conductor { eta: Rgb::new(0.2, 0.4, 1.4), k: Rgb::new(3.9, 2.4, 1.8), spectra: None, specular_reflectance: Texture::constant(Rgb::WHITE) });
+        let mirror = Bsdf::Conductor(Conductor { eta: Rgb::new(0.2, 0.4, 1.4), k: Rgb::new(3.9, 2.4, 1.8), spectra: None, specular_reflectance: Texture::constant(Rgb::WHITE), given: Default::default() });
         let plastic = Bsdf::Plastic(Plastic::new(Texture::constant(Rgb::new(0.5, 0.4, 0.3)), None, 1.5, false));
         let wi = incident(0.7, 1.0);
         let a_plastic = sampled_albedo(&plastic, wi, 400_000, 11);

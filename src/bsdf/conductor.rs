@@ -18,6 +18,13 @@
 //! |---|---|---|---|
 //! | `material` | string | `none` | named metal (`Au`, `Ag`, `Al`, `Cu`, `Cr`, …) |
 //! | `eta`, `k` | rgb / spectrum / float | 0, 1 | complex index, instead of `material` |
+//!
+//! In the spectral modes η and k are read as Mitsuba 3.9.1 reads them: a
+//! `float` (or constant `<spectrum>`) is the same at every wavelength, a
+//! `<spectrum>` of `wavelength:value` pairs is used as listed, and an `rgb`
+//! becomes Mitsuba's `srgb` texture: the colour is clamped to [0, 1] and
+//! uplifted as a reflectance (so an rgb k of (3.9, 2.45, 2.1) is k(λ) ≈ 1).
+//! The RGB modes use the rgb values as given.
 //! | `specular_reflectance` | rgb / spectrum / float / texture | 1 | scale (not physical; leave at 1) |
 //!
 //! ```xml
@@ -32,7 +39,7 @@ use crate::scene::error::{Result, SceneError};
 use crate::scene::loader::PluginLoader;
 use crate::scene::props::Props;
 use crate::spectrum::mueller::{conductor_parameters, interface_from_parameters, interface_to_canonical};
-use crate::spectrum::{Rgb, Spectrum};
+use crate::spectrum::{ListedSpectrum, Rgb, Spectrum, UpliftCache};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
 
@@ -43,16 +50,63 @@ pub struct Conductor {
     /// The measured spectra of a named metal, used in spectral modes.
     pub spectra: Option<&'static MetalSpectra>,
     pub specular_reflectance: Texture,
+    /// How `eta` and `k` were given, which decides their spectral-mode
+    /// values when there are no measured `spectra`.
+    pub given: [IndexInput; 2],
+}
+
+/// How one of a conductor's η, k was given in the scene (its spectral-mode
+/// value follows Mitsuba 3.9.1; the RGB modes use the RGB value).
+#[derive(Clone, Debug)]
+pub enum IndexInput {
+    /// `rgb`: Mitsuba's `srgb` texture, the colour clamped to [0, 1] and
+    /// uplifted as a reflectance (the uplift kept once computed).
+    Rgb(UpliftCache),
+    /// `float` or constant `<spectrum>`: that value at every wavelength.
+    Uniform,
+    /// A `<spectrum>` of `wavelength:value` pairs.
+    Listed(ListedSpectrum),
+}
+
+impl Default for IndexInput {
+    fn default() -> Self {
+        IndexInput::Rgb(UpliftCache::default())
+    }
+}
+
+impl IndexInput {
+    /// How `name` is given in `props` (an absent one is a float default).
+    fn of(props: &Props, name: &str) -> IndexInput {
+        use crate::scene::xml::Value;
+        if let Some(listed) = props.listed_opt(name) {
+            return IndexInput::Listed(listed);
+        }
+        match props.node.props.iter().find(|p| p.name == name).map(|p| &p.value) {
+            Some(Value::Rgb(_)) => IndexInput::default(),
+            _ => IndexInput::Uniform,
+        }
+    }
+
+    /// The value at the path's channels of the quantity whose RGB value is `rgb`.
+    #[inline]
+    fn value<S: Spectrum>(&self, rgb: Rgb, wl: &S::Wavelengths) -> S {
+        match self {
+            IndexInput::Rgb(cache) => S::from_reflectance_cached(rgb, cache, wl),
+            IndexInput::Uniform => S::from_function(rgb, |_| rgb.0[0], wl),
+            IndexInput::Listed(s) => S::from_function(rgb, |l| s.eval(l), wl),
+        }
+    }
 }
 
 /// Reads a conductor's complex index: `eta`/`k` given directly, or a named
 /// `material` (or `none`, a perfect mirror); with a named metal, its
 /// measured spectra for the spectral modes.
-pub fn read_index(props: &Props) -> Result<(Rgb, Rgb, Option<&'static MetalSpectra>)> {
+pub fn read_index(props: &Props) -> Result<(Rgb, Rgb, Option<&'static MetalSpectra>, [IndexInput; 2])> {
     let node = props.node;
     let material = props.string_opt("material")?;
     let given = props.has("eta") || props.has("k");
     let mut spectra = None;
+    let given_as = [IndexInput::of(props, "eta"), IndexInput::of(props, "k")];
     let (eta, k) = match material {
         Some(name) if name != "none" => {
             let loc = node.props.iter().find(|p| p.name == "material").map_or(&node.loc, |p| &p.loc);
@@ -72,22 +126,22 @@ pub fn read_index(props: &Props) -> Result<(Rgb, Rgb, Option<&'static MetalSpect
     if !(eta.is_finite() && k.is_finite() && eta.0.iter().chain(&k.0).all(|&v| v >= 0.0)) {
         return Err(SceneError::at(&node.loc, format!("{} \"eta\" and \"k\" must be finite and not negative", node.plugin)));
     }
-    Ok((eta, k, spectra))
+    Ok((eta, k, spectra, given_as))
 }
 
 impl Conductor {
     /// Reads the parameters in the table above.
     pub fn from_props(props: &Props, loader: &dyn PluginLoader) -> Result<Conductor> {
         let specular_reflectance = loader.reflectance(props, "specular_reflectance", Rgb::WHITE)?;
-        let (eta, k, spectra) = read_index(props)?;
-        Ok(Conductor { eta, k, spectra, specular_reflectance })
+        let (eta, k, spectra, given) = read_index(props)?;
+        Ok(Conductor { eta, k, spectra, specular_reflectance, given })
     }
 
     /// The complex index η + ik at the path's channels.
     pub fn index<S: Spectrum>(&self, wl: &S::Wavelengths) -> (S, S) {
         match self.spectra {
             Some(m) => (S::from_function(self.eta, |l| tabulated(m.eta, l), wl), S::from_function(self.k, |l| tabulated(m.k, l), wl)),
-            None => (S::from_unbounded(self.eta, wl), S::from_unbounded(self.k, wl)),
+            None => (self.given[0].value(self.eta, wl), self.given[1].value(self.k, wl)),
         }
     }
 
@@ -189,6 +243,7 @@ mod tests {
             k: Rgb::new(3.6, 2.5, 1.9),
             spectra: None,
             specular_reflectance: Texture::constant(Rgb::WHITE),
+            given: Default::default(),
         })
     }
 

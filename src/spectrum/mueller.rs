@@ -80,17 +80,26 @@ pub fn rotate_element(m: Mat4, theta: f32) -> Mat4 {
 
 /// The Mueller matrix of an interface with complex amplitude ratios
 /// `a_s`, `a_p` (s/p frame): intensities scale by |a|², and the
-/// components' relative phase δ = arg(a_s) − arg(a_p) turns S2 into S3.
+/// components' relative phase δ = arg(a_p) − arg(a_s) turns S2 into S3.
 fn interface(a_s: Complex32, a_p: Complex32) -> Mat4 {
     interface_from_parameters(interface_parameters(a_s, a_p))
 }
 
 /// The four numbers an interface's Mueller matrix is made of (s/p frames):
 /// ½(|a_s|² + |a_p|²), ½(|a_s|² − |a_p|²) and the real and imaginary parts
-/// of a_s·conj(a_p) = |a_s||a_p| e^{iδ}.
+/// of a_p·conj(a_s) = |a_s||a_p| e^{iδ}.
+///
+/// The matrix is Mitsuba 3.9.1's: its `specular_reflection` takes the
+/// evanescent cos θ_t under total internal reflection as −i·√(sin²θ_t − 1)
+/// and a conductor's index as η − ik, so its amplitudes are the complex
+/// conjugates of the ones Snell computes (+i branch, η + ik), its phase
+/// δ_M = −δ, and its S2/S3 block (c cos δ_M, −c sin δ_M; c sin δ_M,
+/// c cos δ_M) is [`interface_from_parameters`]' with these parameters. (With
+/// a_s·conj(a_p) instead, the S2 → S3 conversion of a gold mirror and of
+/// total internal reflection came out with the opposite sign.)
 pub fn interface_parameters(a_s: Complex32, a_p: Complex32) -> [f32; 4] {
     let (r_s, r_p) = (a_s.norm_sqr(), a_p.norm_sqr());
-    let cross = a_s * a_p.conj();
+    let cross = a_p * a_s.conj();
     [0.5 * (r_s + r_p), 0.5 * (r_s - r_p), cross.re, cross.im]
 }
 
@@ -335,6 +344,18 @@ mod tests {
         let out = m * Vec4::new(1.0, 0.0, 1.0, 0.0);
         assert!(out.w.abs() > 0.05, "{out:?}");
         assert!((degree_of_polarization(out) - 1.0).abs() < 1e-4, "a pure state stays pure: {out:?}");
+    }
+
+    #[test]
+    fn phase_sign_matches_mitsuba() {
+        // Mitsuba 3.9.1 (scalar_spectral_polarized, mueller.specular_reflection):
+        // gold-like η = 0.2 + 3.6i at cos θ_i = 0.5 turns S2 = 1 into
+        // (S2, S3) = (−0.674379, 0.651593); glass of 1.5 seen from inside at
+        // cos θ_i = 0.3 (total internal reflection) has row 2 (…, 0.903678, −0.428212).
+        let out = conductor_reflection(0.5, 0.2, 3.6) * Vec4::new(0.0, 0.0, 1.0, 0.0);
+        assert!((out.z + 0.674_379).abs() < 1e-5 && (out.w - 0.651_593).abs() < 1e-5, "{out:?}");
+        let m = specular_reflection(-0.3, 1.5);
+        assert!((m.z_axis.z - 0.903_678).abs() < 1e-5 && (m.w_axis.z + 0.428_212).abs() < 1e-5, "{m:?}");
     }
 
     #[test]
