@@ -376,7 +376,12 @@ impl Loader {
         }
         self.resolve_mesh_attributes()?;
         let accel = Accel::build_instanced(&self.shapes, &self.top_shapes, &self.groups, &self.instances);
-        let light_sampling = self.light_sampling.get().unwrap_or(LightSampling::DEFAULT);
+        // Unless the integrator names one: bvh, or for light paths (which
+        // start with no shading point to weigh emitters by) power.
+        let light_sampling = self.light_sampling.get().unwrap_or(match integrator {
+            Integrator::Particle(_) => LightSampling::DEFAULT_LIGHT_PATHS,
+            _ => LightSampling::DEFAULT,
+        });
         let lights = LightSelector::new(light_sampling, &self.emitters, &self.shapes);
         Ok(Scene {
             bsdfs: self.bsdfs,
