@@ -466,17 +466,58 @@ pub fn parse_fields(text: &str) -> Vec<(String, String)> {
 struct Checkpoint {
     /// name, value: the checked attributes, each compared on resume.
     identity: Vec<(&'static str, String)>,
+    /// The scene's other files ([`crate::Scene::files`]): name (relative to
+    /// the scene's folder where it lies below it) and content digest, kept
+    /// in the [`FILES_ATTRIBUTE`] to name the file that changed.
+    files: Vec<(String, String)>,
     sample_count: u32,
+}
+
+/// The header attribute that lists a checkpoint's input files, one
+/// `DIGEST NAME` line each (see [`file_digest`]).
+pub const FILES_ATTRIBUTE: &str = "snell.files";
+
+/// A file's content digest: its size in bytes and the CRC-32 of its bytes,
+/// `SIZE-CRC` (hex). Hashing the content (not the modification time) lets a
+/// checkpoint resume on another machine or after a copy; CRC-32 runs at
+/// several GB/s, a small cost beside parsing the file.
+fn file_digest(path: &Path) -> String {
+    use std::io::Read;
+    let Ok(mut file) = std::fs::File::open(path) else { return "unreadable".to_string() };
+    let (mut hasher, mut size, mut buf) = (crc32fast::Hasher::new(), 0u64, vec![0u8; 1 << 20]);
+    loop {
+        match file.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => {
+                hasher.update(&buf[..n]);
+                size += n as u64;
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(_) => return "unreadable".to_string(),
+        }
+    }
+    format!("{size:x}-{:08x}", hasher.finalize())
 }
 
 impl Checkpoint {
     fn new(args: &RenderArgs, scene: &crate::Scene) -> Checkpoint {
-        // The scene file's bytes and the -D definitions (assets it loads are
-        // not hashed: a changed mesh file is not detected).
+        // The scene file's bytes, the -D definitions and the digests of the
+        // files it reads (included XML, meshes, images).
         let mut defines = args.define.clone();
         defines.sort();
         let text = std::fs::read(&args.scene).unwrap_or_default();
-        let digest = text.iter().chain(defines.join("\n").as_bytes()).fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
+        let folder = args.scene.parent().unwrap_or(Path::new(""));
+        let files: Vec<(String, String)> = scene
+            .files
+            .iter()
+            .map(|f| (f.strip_prefix(folder).unwrap_or(f).display().to_string().replace('\n', " "), file_digest(f)))
+            .collect();
+        let listed: String = files.iter().map(|(name, digest)| format!("\n{digest} {name}")).collect();
+        let digest = text
+            .iter()
+            .chain(defines.join("\n").as_bytes())
+            .chain(listed.as_bytes())
+            .fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
         let [ox, oy, w, h] = scene.film.crop;
         Checkpoint {
             identity: vec![
@@ -486,6 +527,7 @@ impl Checkpoint {
                 ("spp", scene.sampler.sample_count.to_string()),
                 ("seed", scene.sampler.seed.to_string()),
             ],
+            files,
             sample_count: scene.sampler.sample_count,
         }
     }
@@ -503,6 +545,10 @@ impl Checkpoint {
         // keeps the file a function of the image).
         let fields: Vec<String> = std::iter::once(format!("samples={samples}")).chain(self.identity.iter().map(|(k, v)| format!("{k}={v}"))).collect();
         meta.text.push((RENDER_ATTRIBUTE.into(), fields.join("; ")));
+        if !self.files.is_empty() {
+            let lines: Vec<String> = self.files.iter().map(|(name, digest)| format!("{digest} {name}")).collect();
+            meta.text.push((FILES_ATTRIBUTE.into(), lines.join("\n")));
+        }
         if let Some(s) = state.filter(|s| s.header.complete && !s.is_finished()) {
             meta.state = Some(s.to_bytes());
         }
@@ -518,6 +564,27 @@ impl Checkpoint {
         let get = |k: &str| fields.iter().find(|(n, _)| n == k).map(|(_, v)| v.as_str());
         if get("samples").is_none() {
             anyhow::bail!("--resume {}: not a Snell checkpoint (its header has no {RENDER_ATTRIBUTE} attribute)", path.display());
+        }
+        // A changed input file, named (its digest is also in the scene's).
+        let saved_files: Vec<(&str, &str)> = meta
+            .text
+            .iter()
+            .find(|(n, _)| n == FILES_ATTRIBUTE)
+            .map(|(_, v)| v.lines().filter_map(|l| l.split_once(' ')).map(|(d, n)| (n, d)).collect())
+            .unwrap_or_default();
+        for (name, digest) in &self.files {
+            match saved_files.iter().find(|(n, _)| n == name) {
+                Some((_, d)) if d == digest => {}
+                Some((_, d)) => anyhow::bail!(
+                    "--resume {}: the scene's file {name} has changed since the checkpoint was written (size-CRC32 {d}, now {digest}); restore it or render again without --resume",
+                    path.display()
+                ),
+                None if meta.text.iter().any(|(n, _)| n == FILES_ATTRIBUTE) => anyhow::bail!(
+                    "--resume {}: the scene now reads the file {name}, which the checkpoint's render did not; render again without --resume",
+                    path.display()
+                ),
+                None => {}
+            }
         }
         for (name, value) in &self.identity {
             let saved = get(name).unwrap_or("none");

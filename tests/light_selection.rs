@@ -252,10 +252,13 @@ fn load_text(text: &str) -> Result<Scene, snell::SceneError> {
 #[test]
 fn light_sampling_defaults_and_choices() {
     let default = load_text(&scene_with_integrator(r#"<integrator type="path"/>"#)).unwrap();
-    assert_eq!(default.lights.strategy(), LightSampling::Uniform);
+    assert_eq!(default.lights.strategy(), LightSampling::Bvh);
+    let direct = load_text(&scene_with_integrator(r#"<integrator type="direct"/>"#)).unwrap();
+    assert_eq!(direct.lights.strategy(), LightSampling::Bvh);
+    // Light paths start with no shading point: by power.
     let ptracer = load_text(&scene_with_integrator(r#"<integrator type="ptracer"/>"#)).unwrap();
-    assert_eq!(ptracer.lights.strategy(), LightSampling::Uniform);
-    for (integrator, name) in [("direct", "bvh"), ("path", "power"), ("ptracer", "power"), ("path", "bvh")] {
+    assert_eq!(ptracer.lights.strategy(), LightSampling::Power);
+    for (integrator, name) in [("direct", "bvh"), ("path", "power"), ("ptracer", "power"), ("path", "bvh"), ("path", "uniform"), ("ptracer", "uniform")] {
         let s = load_text(&scene_with_integrator(&format!(
             r#"<integrator type="{integrator}"><string name="light_sampling" value="{name}"/></integrator>"#
         )))

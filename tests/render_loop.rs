@@ -313,3 +313,71 @@ fn bad_pass_and_checkpoint_flags_are_clear_errors() {
     assert!(code == Some(1) && err.contains("not a Snell checkpoint"), "{err}");
     assert!(!exr.exists());
 }
+
+/// A checkpoint's digest covers the files the scene reads (included XML, a
+/// mesh, a texture): editing one makes `--resume` refuse, naming the file.
+#[test]
+fn resume_refuses_a_checkpoint_whose_mesh_texture_or_include_changed() {
+    let dir = std::env::temp_dir().join(format!("snell-loop-{}-files", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("assets")).unwrap();
+    let scene = dir.join("scene.xml");
+    std::fs::write(
+        &scene,
+        r#"<scene version="3.0.0">
+    <sensor type="perspective">
+        <float name="fov" value="40"/>
+        <transform name="to_world"><lookat origin="0, 0, 4" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="4"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="12"/></film>
+    </sensor>
+    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+    <include filename="part.xml"/>
+</scene>
+"#,
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("part.xml"),
+        r#"<scene version="3.0.0">
+    <shape type="obj"><string name="filename" value="assets/quad.obj"/>
+        <bsdf type="diffuse"><texture type="bitmap" name="reflectance"><string name="filename" value="assets/tex.png"/></texture></bsdf>
+    </shape>
+</scene>
+"#,
+    )
+    .unwrap();
+    let quad = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nf 1 2 3\nf 1 3 4\n";
+    let mesh = dir.join("assets/quad.obj");
+    std::fs::write(&mesh, quad).unwrap();
+    let tex = dir.join("assets/tex.png");
+    image::RgbImage::from_pixel(4, 4, image::Rgb([200, 120, 40])).save(&tex).unwrap();
+    let out = dir.join("out.exr");
+    let (code, err) = run(&["render", s(&scene), "-o", s(&out), "-q"]);
+    assert_eq!(code, Some(0), "{err}");
+    let meta = snell::film::output::read_exr_metadata(&out).unwrap();
+    let files = &meta.text.iter().find(|(k, _)| k == "snell.files").expect("snell.files attribute").1;
+    let names: Vec<&str> = files.lines().filter_map(|l| l.split_once(' ')).map(|(_, n)| n).collect();
+    assert_eq!(names, ["part.xml", "assets/quad.obj", "assets/tex.png"], "{files}");
+    let (code, err) = run(&["render", s(&scene), "--resume", s(&out)]);
+    assert!(code == Some(0) && err.contains("nothing to do"), "{err}");
+
+    // One vertex moved: refused, naming the mesh; restored: accepted again.
+    std::fs::write(&mesh, quad.replace("v 1 1 0", "v 1 1.5 0")).unwrap();
+    let (code, err) = run(&["render", s(&scene), "--resume", s(&out)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("assets/quad.obj") && err.contains("has changed"), "{err}");
+    std::fs::write(&mesh, quad).unwrap();
+    let (code, err) = run(&["render", s(&scene), "--resume", s(&out)]);
+    assert!(code == Some(0) && err.contains("nothing to do"), "{err}");
+
+    // A texture of another colour, and an edited included file.
+    image::RgbImage::from_pixel(4, 4, image::Rgb([200, 120, 41])).save(&tex).unwrap();
+    let (code, err) = run(&["render", s(&scene), "--resume", s(&out)]);
+    assert!(code == Some(1) && err.contains("assets/tex.png") && err.contains("has changed"), "{err}");
+    image::RgbImage::from_pixel(4, 4, image::Rgb([200, 120, 40])).save(&tex).unwrap();
+    let part = std::fs::read_to_string(dir.join("part.xml")).unwrap();
+    std::fs::write(dir.join("part.xml"), part.replace("<shape", "<!-- edited --><shape")).unwrap();
+    let (code, err) = run(&["render", s(&scene), "--resume", s(&out)]);
+    assert!(code == Some(1) && err.contains("part.xml") && err.contains("has changed"), "{err}");
+}

@@ -555,7 +555,13 @@ def mitsuba_images(args, scene, sampler, spp, seeds, out):
     if r.returncode != 0:
         print(f"mitsuba {sampler}: worker failed (exit {r.returncode}); skipping")
         return None
-    secs = json.loads(r.stdout.strip().splitlines()[-1])["seconds"]
+    # The JSON result (Mitsuba logs warnings, e.g. a rounded sample count, to
+    # stdout, the last one's colour reset on the result's line).
+    at = r.stdout.rfind('{"seconds"')
+    if at < 0:
+        print(f"mitsuba {sampler}: the worker printed no result; skipping\n{r.stdout}")
+        return None
+    secs = json.loads(r.stdout[at:].strip())["seconds"]
     return secs, [f"{out}-mitsuba-{sampler}-{s}.pfm" for s in seeds]
 
 

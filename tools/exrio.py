@@ -1,6 +1,7 @@
 """Minimal OpenEXR I/O for the reference images (numpy only).
 
-write_exr() writes a single-part scanline EXR, NO_COMPRESSION, FLOAT (32-bit)
+write_exr() writes a single-part scanline EXR, NO_COMPRESSION, FLOAT (32-bit;
+HALF with half=True)
 channels (R, G, B unless named otherwise; EXR stores them sorted by name), one
 scanline per block.
 read_exr() reads back such files (uncompressed, FLOAT or HALF channels).
@@ -14,14 +15,16 @@ def _attr(name, typ, data):
     return name.encode() + b"\0" + typ.encode() + b"\0" + struct.pack("<i", len(data)) + data
 
 
-def write_exr(path, img, names=("R", "G", "B")):
-    """img: HxWxC; names: the C channel names (e.g. R, G, B, S1.R, ...)."""
+def write_exr(path, img, names=("R", "G", "B"), half=False):
+    """img: HxWxC; names: the C channel names (e.g. R, G, B, S1.R, ...);
+    half: 16-bit channels (for standard errors, which need no more)."""
+    ptype, nbytes, fmt = (1, 2, "<f2") if half else (2, 4, "<f4")
     img = np.asarray(img, dtype=np.float32)
     if img.ndim != 3 or img.shape[2] != len(names):
         raise ValueError("expected an HxWx%d array" % len(names))
     h, w, _ = img.shape
     chans = sorted((n, i) for i, n in enumerate(names))
-    chlist = b"".join(n.encode() + b"\0" + struct.pack("<iB3xii", 2, 0, 1, 1)
+    chlist = b"".join(n.encode() + b"\0" + struct.pack("<iB3xii", ptype, 0, 1, 1)
                       for n, _ in chans) + b"\0"
     box = struct.pack("<iiii", 0, 0, w - 1, h - 1)
     header = b"".join([
@@ -36,7 +39,7 @@ def write_exr(path, img, names=("R", "G", "B")):
         _attr("screenWindowWidth", "float", struct.pack("<f", 1.0)),
         b"\0",
     ])
-    line_bytes = w * len(chans) * 4
+    line_bytes = w * len(chans) * nbytes
     first = len(header) + 8 * h
     offsets = [first + y * (8 + line_bytes) for y in range(h)]
     with open(path, "wb") as f:
@@ -45,7 +48,7 @@ def write_exr(path, img, names=("R", "G", "B")):
         for y in range(h):
             f.write(struct.pack("<ii", y, line_bytes))
             for _, c in chans:
-                f.write(np.ascontiguousarray(img[y, :, c]).astype("<f4").tobytes())
+                f.write(np.ascontiguousarray(img[y, :, c]).astype(fmt).tobytes())
 
 
 def read_exr(path, names=("R", "G", "B")):

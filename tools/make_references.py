@@ -9,7 +9,11 @@ plus tests/references/README.md describing how they were made.
 
 Usage (after tools/setup-mitsuba.sh):
   .venv-mitsuba/bin/python tools/make_references.py [--spp 65536] [--pass-spp 1024]
-      [--res 128] [--variant llvm_ad_rgb] [scene.xml[@SPP] ...]
+      [--res 128] [--variant llvm_ad_rgb] [--stderr] [scene.xml[@SPP] ...]
+
+--stderr also writes tests/references/<scene-stem>.stderr.exr: every
+channel's per-pixel standard error of the mean (from the spread of the
+passes; 16-bit floats), so that a test can count the reference's own noise.
 
 A scene's sample count is, in order of precedence: SPP after '@' on the
 command line, its entry in SCENE_SPP (scenes whose caustics need more samples
@@ -96,6 +100,8 @@ def main():
     ap.add_argument("--variant", default=None)
     ap.add_argument("--out", default=os.path.join(ROOT, "tests", "references"))
     ap.add_argument("--no-readme", action="store_true")
+    ap.add_argument("--stderr", action="store_true",
+                    help="also write <stem>.stderr.exr, the per-pixel standard error of the mean")
     args = ap.parse_args()
 
     variant = pick_variant(args.variant)
@@ -110,6 +116,8 @@ def main():
         img, stderr, spp, secs, names = render_reference(path, args.res, scene_spp, args.pass_spp)
         out = os.path.join(args.out, stem + ".exr")
         write_exr(out, img, names)
+        if args.stderr:
+            write_exr(os.path.join(args.out, stem + ".stderr.exr"), stderr, names, half=True)
         m = img[:, :, :3].reshape(-1, 3).mean(0)
         rel = float(stderr[:, :, :3].mean() / max(img[:, :, :3].mean(), 1e-12))
         print(f"{stem}: {img.shape[1]}x{img.shape[0]}, {spp} spp, {secs:.0f}s, "

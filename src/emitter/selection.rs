@@ -6,21 +6,21 @@
 //!
 //! | parameter | type | default | meaning |
 //! |---|---|---|---|
-//! | `light_sampling` | string | `uniform` | `uniform`: every emitter equally likely (Mitsuba's choice); `power`: in proportion to each emitter's flux; `bvh`: a light BVH that weighs flux by distance and orientation to the shading point |
+//! | `light_sampling` | string | `bvh` (`ptracer`: `power`) | `uniform`: every emitter equally likely (Mitsuba's choice); `power`: in proportion to each emitter's flux; `bvh`: a light BVH that weighs flux by distance and orientation to the shading point |
 //!
 //! ```xml
 //! <integrator type="path">
-//!     <string name="light_sampling" value="bvh"/>
+//!     <string name="light_sampling" value="uniform"/>
 //! </integrator>
 //! ```
 //!
 //! (Mitsuba 3 does not know `light_sampling` and refuses a scene that sets
-//! it.) The default is `uniform`, Mitsuba's choice, although `bvh` is the
-//! most efficient in every scene measured (`tools/light_efficiency.py`:
-//! 4.2× Mitsuba's 1/(relMSE·s) on `scenes/many-lights.xml`, the same as
-//! uniform with one emitter): some of the test suite's comparisons with
-//! Mitsuba references ignore the references' own noise, which a less noisy
-//! Snell image exposes; `bvh` becomes the default once they account for it.
+//! it; it chooses uniformly.) The default is `bvh`, the most efficient in
+//! every scene measured (`tools/light_efficiency.py`: on
+//! `scenes/many-lights.xml` several times Mitsuba's 1/(relMSE·s), see the
+//! README; with one emitter all three choose the same). `ptracer` takes
+//! only `uniform` or `power` and defaults to `power`: a light path starts
+//! before there is a point to weigh distance and orientation by.
 //!
 //! **Flux.** `power` and `bvh` weigh an emitter by its flux Φ in watts (of the
 //! mean of its RGB channels): an area light of radiance L (a texture: its
@@ -70,9 +70,12 @@ pub enum LightSampling {
 }
 
 impl LightSampling {
-    /// The strategy when the integrator names none: Mitsuba's, so that a
-    /// Mitsuba scene gives Mitsuba's noise (see the module documentation).
-    pub const DEFAULT: LightSampling = LightSampling::Uniform;
+    /// The strategy when the integrator names none (see the module
+    /// documentation).
+    pub const DEFAULT: LightSampling = LightSampling::Bvh;
+    /// The default of `ptracer`, whose light paths start with no shading
+    /// point to weigh emitters by.
+    pub const DEFAULT_LIGHT_PATHS: LightSampling = LightSampling::Power;
 
     /// The names the `light_sampling` parameter accepts.
     pub const NAMES: [&'static str; 3] = ["uniform", "power", "bvh"];

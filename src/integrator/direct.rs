@@ -21,7 +21,7 @@
 //! | `bsdf_samples` | integer | `shading_samples` | BSDF samples per camera ray |
 //! | `shading_samples` | integer | 1 | default for both |
 //! | `hide_emitters` | boolean | false | hide directly visible emitters (camera rays pass through emitting shapes) |
-//! | `light_sampling` | string | `uniform` | how emitters are chosen: `uniform`, `power`, `bvh` ([`crate::emitter::selection`]) |
+//! | `light_sampling` | string | `bvh` | how emitters are chosen: `uniform` (as Mitsuba), `power`, `bvh` ([`crate::emitter::selection`]) |
 //!
 //! ```xml
 //! <integrator type="direct"><integer name="emitter_samples" value="4"/></integrator>

@@ -13,7 +13,7 @@
 //! | `max_depth` | integer | -1 | longest path in segments; -1 = unlimited, 1 = emitters only, 2 = direct light |
 //! | `rr_depth` | integer | 5 | depth at which Russian roulette starts |
 //! | `hide_emitters` | boolean | false | hide directly visible emitters (camera rays pass through emitting shapes) |
-//! | `light_sampling` | string | `uniform` | how emitters are chosen: `uniform`, `power`, `bvh` ([`crate::emitter::selection`]) |
+//! | `light_sampling` | string | `bvh` | how emitters are chosen: `uniform` (as Mitsuba), `power`, `bvh` ([`crate::emitter::selection`]) |
 //!
 //! ```xml
 //! <integrator type="path"><integer name="max_depth" value="8"/></integrator>

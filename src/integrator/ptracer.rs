@@ -22,7 +22,7 @@
 //! | `rr_depth` | integer | 5 | depth at which Russian roulette starts |
 //! | `hide_emitters` | boolean | false | do not show emitters seen directly |
 //! | `samples_per_pass` | integer | — | accepted for Mitsuba compatibility (scheduling only) |
-//! | `light_sampling` | string | `uniform` | emitter a light path starts on: `uniform` or `power` (by flux) |
+//! | `light_sampling` | string | `power` | emitter a light path starts on: `power` (by flux) or `uniform` (as Mitsuba) |
 //!
 //! Emitters: `area`, `point`, `spot` (a path has to start somewhere finite);
 //! sensor: `perspective` (a pinhole can be connected to; an orthographic

@@ -173,6 +173,9 @@ struct Loader {
     /// The `light_sampling` an integrator named explicitly (the default
     /// depends on the integrator).
     light_sampling: std::cell::Cell<Option<LightSampling>>,
+    /// The files read besides the scene's XML (meshes, images), in the
+    /// order first read: [`Scene::files`].
+    files: std::cell::RefCell<Vec<PathBuf>>,
 }
 
 fn collect_ids(node: &Node, ids: &mut HashMap<String, Arc<Node>>) -> Result<()> {
@@ -195,6 +198,19 @@ fn collect_ids(node: &Node, ids: &mut HashMap<String, Arc<Node>>) -> Result<()> 
 /// folder, the working directory; see [`super::search`]).
 fn resolve_path(node: &Node, name: &str) -> PathBuf {
     node.loc.file.search.resolve_or_default(name)
+}
+
+/// The XML files other than `top` that elements of `node` come from.
+fn included_files(node: &Node, top: &Path, out: &mut Vec<PathBuf>) {
+    let path = &node.loc.file.path;
+    if path.as_path() != top && !out.contains(path) {
+        out.push(path.clone());
+    }
+    for c in &node.children {
+        if let ChildTarget::Inline(n) = &c.target {
+            included_files(n, top, out);
+        }
+    }
 }
 
 /// `e` with the folders searched for `name` as help, if no such file exists.
@@ -267,7 +283,19 @@ impl Loader {
             mesh_attribute_textures: Default::default(),
             film_width: None,
             light_sampling: Default::default(),
+            files: Default::default(),
         })
+    }
+
+    /// Where a file name written in `node` is read from ([`resolve_path`]),
+    /// noted in [`Scene::files`].
+    fn input_file(&self, node: &Node, name: &str) -> PathBuf {
+        let path = resolve_path(node, name);
+        let mut files = self.files.borrow_mut();
+        if !files.contains(&path) {
+            files.push(path.clone());
+        }
+        path
     }
 
     fn resolve(&self, child: &Child) -> Result<Arc<Node>> {
@@ -388,8 +416,22 @@ impl Loader {
         }
         self.resolve_mesh_attributes()?;
         let accel = Accel::build_instanced(&self.shapes, &self.top_shapes, &self.groups, &self.instances);
-        let light_sampling = self.light_sampling.get().unwrap_or(LightSampling::DEFAULT);
+        // Unless the integrator names one: bvh, or for light paths (which
+        // start with no shading point to weigh emitters by) power.
+        let light_sampling = self.light_sampling.get().unwrap_or(match integrator {
+            Integrator::Particle(_) => LightSampling::DEFAULT_LIGHT_PATHS,
+            _ => LightSampling::DEFAULT,
+        });
         let lights = LightSelector::new(light_sampling, &self.emitters, &self.shapes);
+        // Included XML files first (every file some element comes from),
+        // then the meshes and images in the order read.
+        let mut files = vec![];
+        included_files(root, &root.loc.file.path, &mut files);
+        for f in self.files.take() {
+            if !files.contains(&f) {
+                files.push(f);
+            }
+        }
         Ok(Scene {
             bsdfs: self.bsdfs,
             emitters: self.emitters,
@@ -404,6 +446,7 @@ impl Loader {
             pass_through: self.shapes.iter().any(|s| s.pass_through),
             lights,
             shapes: self.shapes,
+            files,
         })
     }
 
@@ -618,7 +661,7 @@ impl Loader {
         let filename = props.string_req("filename")?;
         let mut face_normals = props.bool("face_normals", false)?;
         let flip_tex = if node.plugin == "obj" { props.bool("flip_tex_coords", true)? } else { false };
-        let path = resolve_path(node, filename);
+        let path = self.input_file(node, filename);
         let file_loc = node.props.iter().find(|p| p.name == "filename").map_or(&node.loc, |p| &p.loc);
         let raw = match node.plugin.as_str() {
             "obj" => mesh_io::read_obj(&path),
@@ -766,7 +809,7 @@ impl Loader {
                 // Mitsuba's storage precision: `uint8` and `float16` round the
                 // texels as Mitsuba stores them; `auto`/`variant` keep floats.
                 let format = props.choice("format", "auto", &["auto", "variant", "float16", "uint8"])?;
-                let path = resolve_path(node, filename);
+                let path = self.input_file(node, filename);
                 let loc = node.props.iter().find(|p| p.name == "filename").map_or(&node.loc, |p| &p.loc);
                 let (width, height, texels) =
                     bitmap::read_image(&path, raw).map_err(|e| with_search_help(SceneError::at(loc, e), node, filename))?;
@@ -906,7 +949,7 @@ impl Loader {
                 let scale = props.float_checked("scale", 1.0, |s| s.is_finite() && s >= 0.0, "a non-negative number")?;
                 let to_world = props.transform("to_world")?;
                 props.bool("mis_compensation", false)?;
-                let path = resolve_path(node, filename);
+                let path = self.input_file(node, filename);
                 let loc = node.props.iter().find(|p| p.name == "filename").map_or(&node.loc, |p| &p.loc);
                 let (width, height, texels) = bitmap::read_image(&path, false).map_err(|e| SceneError::at(loc, e))?;
                 let map = EnvironmentMap::new(width, height, texels, scale, to_world)

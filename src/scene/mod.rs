@@ -57,6 +57,10 @@ pub struct Scene {
     pub pass_through: bool,
     /// How emitters are chosen for next-event estimation and light paths.
     pub lights: LightSelector,
+    /// The files the scene was read from besides its top-level XML:
+    /// included XML files, then meshes and images in the order read (what
+    /// a checkpoint's digest covers besides the scene text).
+    pub files: Vec<std::path::PathBuf>,
 }
 
 /// Most surfaces a ray passes through before it gives up (a guard against

@@ -156,6 +156,32 @@ pub struct Comparison {
 /// standard error comes from the spread of the passes; `ref_rel_err` is the
 /// reference's own relative error (0 for a closed form).
 pub fn compare(passes: &[Image], reference: &Image, block: u32, ref_rel_err: f64) -> Comparison {
+    compare_by(passes, reference, block, |_, _, _, r| (ref_rel_err * r).powi(2))
+}
+
+/// As [`compare`], counting the reference's own noise block by block:
+/// `ref_stderr` holds each reference pixel's standard error of the mean (the
+/// spread of Mitsuba's passes, `tools/make_references.py --stderr`). The
+/// reference's pixels are independent renders, so a block mean's variance
+/// is the sum of its pixels' squared standard errors over the number of
+/// pixels squared; it adds to the variance of the passes' mean in z.
+pub fn compare_with_reference_noise(passes: &[Image], reference: &Image, ref_stderr: &Image, block: u32) -> Comparison {
+    assert_eq!((ref_stderr.width, ref_stderr.height), (reference.width, reference.height), "standard-error image size");
+    let n = (block * block) as f64;
+    compare_by(passes, reference, block, |bx, by, c, _| {
+        let mut v = 0.0f64;
+        for j in by * block..(by + 1) * block {
+            for i in bx * block..(bx + 1) * block {
+                v += (ref_stderr.pixels[(j * ref_stderr.width + i) as usize][c] as f64).powi(2);
+            }
+        }
+        v / (n * n)
+    })
+}
+
+/// The comparison, with `ref_var(bx, by, channel, reference block mean)`
+/// the variance of the reference's block mean.
+fn compare_by(passes: &[Image], reference: &Image, block: u32, ref_var: impl Fn(u32, u32, usize, f64) -> f64) -> Comparison {
     let avg = average(passes);
     assert_eq!((avg.width, avg.height), (reference.width, reference.height), "image sizes differ");
     let (ma, mr) = (mean(&avg), mean(reference));
@@ -169,7 +195,7 @@ pub fn compare(passes: &[Image], reference: &Image, block: u32, ref_rel_err: f64
             for c in 0..3 {
                 let m = per_pass.iter().map(|p| p[c]).sum::<f64>() / k;
                 let var = per_pass.iter().map(|p| (p[c] - m).powi(2)).sum::<f64>() / (k - 1.0);
-                let se2 = var / k + (ref_rel_err * r[c]).powi(2);
+                let se2 = var / k + ref_var(bx, by, c, r[c]);
                 if se2 <= 1e-14 {
                     // A noiseless block (e.g. black, or a constant background) must match exactly.
                     assert!((m - r[c]).abs() <= 1e-4 * (1.0 + r[c].abs()), "block ({bx},{by}) channel {c}: {m} vs {}", r[c]);
