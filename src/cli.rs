@@ -462,8 +462,10 @@ pub fn parse_fields(text: &str) -> Vec<(String, String)> {
 }
 
 /// What a checkpoint's EXR header says about the render it holds, to check
-/// that `--resume` continues the same render.
-struct Checkpoint {
+/// that `--resume` continues the same render. Public so that a distributed
+/// render (the Python package's `snell.distributed`) writes and reads the
+/// same checkpoints as the command line.
+pub struct Checkpoint {
     /// name, value: the checked attributes, each compared on resume.
     identity: Vec<(&'static str, String)>,
     sample_count: u32,
@@ -471,17 +473,24 @@ struct Checkpoint {
 
 impl Checkpoint {
     fn new(args: &RenderArgs, scene: &crate::Scene) -> Checkpoint {
+        let text = std::fs::read(&args.scene).unwrap_or_default();
+        Checkpoint::of(&text, &args.define, scene, args.mode.into())
+    }
+
+    /// The checkpoints of a render of `scene` (loaded from a file holding
+    /// `text`, with the `-D` definitions `defines`, each `NAME=VALUE`) in
+    /// `mode`.
+    pub fn of(text: &[u8], defines: &[String], scene: &crate::Scene, mode: crate::Mode) -> Checkpoint {
         // The scene file's bytes and the -D definitions (assets it loads are
         // not hashed: a changed mesh file is not detected).
-        let mut defines = args.define.clone();
+        let mut defines = defines.to_vec();
         defines.sort();
-        let text = std::fs::read(&args.scene).unwrap_or_default();
         let digest = text.iter().chain(defines.join("\n").as_bytes()).fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
         let [ox, oy, w, h] = scene.film.crop;
         Checkpoint {
             identity: vec![
                 ("scene", format!("{:016x}", crate::math::rng::mix64(digest))),
-                ("mode", crate::Mode::from(args.mode).name().to_string()),
+                ("mode", mode.name().to_string()),
                 ("size", format!("{}x{} crop {w}x{h}+{ox}+{oy}", scene.film.width, scene.film.height)),
                 ("spp", scene.sampler.sample_count.to_string()),
                 ("seed", scene.sampler.seed.to_string()),
@@ -493,7 +502,7 @@ impl Checkpoint {
     /// The header attributes of an output holding `state`: which samples it
     /// holds, and the exact state itself when the render can be resumed (a
     /// complete pass, not the last).
-    fn metadata(&self, state: Option<&crate::film::FilmState>) -> ExrMetadata {
+    pub fn metadata(&self, state: Option<&crate::film::FilmState>) -> ExrMetadata {
         let mut meta = ExrMetadata::default();
         let samples = match state {
             Some(s) if s.header.complete => s.ranges().iter().map(|r| format!("{}-{}", r.start, r.end)).collect::<Vec<_>>().join(","),
@@ -512,7 +521,7 @@ impl Checkpoint {
     /// The state to continue from in the checkpoint `path`, or `None` if it
     /// already holds the whole render; an error if it is of another render
     /// or holds no state.
-    fn read(&self, path: &Path) -> anyhow::Result<Option<crate::film::FilmState>> {
+    pub fn read(&self, path: &Path) -> anyhow::Result<Option<crate::film::FilmState>> {
         let meta = crate::film::output::read_exr_metadata(path).with_context(|| format!("--resume {}", path.display()))?;
         let fields = meta.text.iter().find(|(n, _)| n == RENDER_ATTRIBUTE).map(|(_, v)| parse_fields(v)).unwrap_or_default();
         let get = |k: &str| fields.iter().find(|(n, _)| n == k).map(|(_, v)| v.as_str());
