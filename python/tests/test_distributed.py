@@ -239,6 +239,28 @@ def test_the_preview_page_shows_a_distributed_render(cluster, reference):
         assert np.all(np.frombuffer(frame[32:], dtype="<f4") == 1.0)
 
 
+def test_the_preview_stop_button_ends_a_distributed_render(cluster, reference, tmp_path):
+    checkpoint = tmp_path / "stopped.exr"
+    shown = []
+    with snell.Preview(port=0) as preview:
+        def stop(fraction, image):
+            shown.append(image)
+            if len(shown) == 1:
+                req = urllib.request.Request(preview.url + "stop", method="POST", data=b"",
+                                             headers={"Origin": preview.url.rstrip("/")})
+                assert json.loads(_get(req))["stopping"] is True
+                assert preview.stop_requested
+
+        image = dist.render(SCENE, SPP, seed=3, params=PARAMS, chunk_spp=4, preview=preview, progress=stop,
+                            checkpoint=checkpoint)
+        assert json.loads(_get(preview.url + "progress"))["state"] == "stopped"
+    # The image of the chunks merged when Stop was seen: not all of them.
+    assert np.array_equal(image, shown[-1]) and len(shown) < SPP // 4
+    assert not np.array_equal(image, reference)
+    held = sum(b - a for a, b in _checkpoint_ranges(checkpoint))
+    assert held == 4 * len(shown)
+
+
 def test_dict_scene_files_are_shipped(cluster, tmp_path):
     mesh = tmp_path / "torus.obj"
     shutil.copyfile(ROOT / "tests" / "scenes" / "assets" / "torus.obj", mesh)
