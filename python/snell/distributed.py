@@ -298,7 +298,7 @@ def render(
     todo = chunks(total, int(chunk_spp), held)
 
     own_preview = isinstance(preview, int) and not isinstance(preview, bool)
-    view: Optional[Preview] = Preview(preview, mode=mode, size=(width, height)) if own_preview else preview
+    view: Optional[Preview] = Preview(preview, mode=mode, size=(width, height)) if own_preview else (preview or None)
     if own_preview:
         print(f"preview: {view.url}", file=sys.stderr)
     task = ray.remote(_render_chunk).options(max_retries=max_retries, num_cpus=threads_per_task)
