@@ -462,8 +462,10 @@ pub fn parse_fields(text: &str) -> Vec<(String, String)> {
 }
 
 /// What a checkpoint's EXR header says about the render it holds, to check
-/// that `--resume` continues the same render.
-struct Checkpoint {
+/// that `--resume` continues the same render. Public so that a distributed
+/// render (the Python package's `snell.distributed`) writes and reads the
+/// same checkpoints as the command line.
+pub struct Checkpoint {
     /// name, value: the checked attributes, each compared on resume.
     identity: Vec<(&'static str, String)>,
     /// The scene's other files ([`crate::Scene::files`]): name (relative to
@@ -501,16 +503,23 @@ fn file_digest(path: &Path) -> String {
 
 impl Checkpoint {
     fn new(args: &RenderArgs, scene: &crate::Scene) -> Checkpoint {
-        // The scene file's bytes, the -D definitions and the digests of the
-        // files it reads (included XML, meshes, images).
-        let mut defines = args.define.clone();
-        defines.sort();
         let text = std::fs::read(&args.scene).unwrap_or_default();
-        let folder = args.scene.parent().unwrap_or(Path::new(""));
+        Checkpoint::of(&text, &args.define, scene, args.mode.into())
+    }
+
+    /// The checkpoints of a render of `scene` (loaded from a file holding
+    /// `text`, with the `-D` definitions `defines`, each `NAME=VALUE`) in
+    /// `mode`.
+    pub fn of(text: &[u8], defines: &[String], scene: &crate::Scene, mode: crate::Mode) -> Checkpoint {
+        // The scene file's bytes, the -D definitions and the digests of the
+        // files it reads (included XML, meshes, images), named relative to
+        // the scene's folder.
+        let mut defines = defines.to_vec();
+        defines.sort();
         let files: Vec<(String, String)> = scene
             .files
             .iter()
-            .map(|f| (f.strip_prefix(folder).unwrap_or(f).display().to_string().replace('\n', " "), file_digest(f)))
+            .map(|f| (f.strip_prefix(&scene.folder).unwrap_or(f).display().to_string().replace('\n', " "), file_digest(f)))
             .collect();
         let listed: String = files.iter().map(|(name, digest)| format!("\n{digest} {name}")).collect();
         let digest = text
@@ -522,7 +531,7 @@ impl Checkpoint {
         Checkpoint {
             identity: vec![
                 ("scene", format!("{:016x}", crate::math::rng::mix64(digest))),
-                ("mode", crate::Mode::from(args.mode).name().to_string()),
+                ("mode", mode.name().to_string()),
                 ("size", format!("{}x{} crop {w}x{h}+{ox}+{oy}", scene.film.width, scene.film.height)),
                 ("spp", scene.sampler.sample_count.to_string()),
                 ("seed", scene.sampler.seed.to_string()),
@@ -535,7 +544,7 @@ impl Checkpoint {
     /// The header attributes of an output holding `state`: which samples it
     /// holds, and the exact state itself when the render can be resumed (a
     /// complete pass, not the last).
-    fn metadata(&self, state: Option<&crate::film::FilmState>) -> ExrMetadata {
+    pub fn metadata(&self, state: Option<&crate::film::FilmState>) -> ExrMetadata {
         let mut meta = ExrMetadata::default();
         let samples = match state {
             Some(s) if s.header.complete => s.ranges().iter().map(|r| format!("{}-{}", r.start, r.end)).collect::<Vec<_>>().join(","),
@@ -558,7 +567,7 @@ impl Checkpoint {
     /// The state to continue from in the checkpoint `path`, or `None` if it
     /// already holds the whole render; an error if it is of another render
     /// or holds no state.
-    fn read(&self, path: &Path) -> anyhow::Result<Option<crate::film::FilmState>> {
+    pub fn read(&self, path: &Path) -> anyhow::Result<Option<crate::film::FilmState>> {
         let meta = crate::film::output::read_exr_metadata(path).with_context(|| format!("--resume {}", path.display()))?;
         let fields = meta.text.iter().find(|(n, _)| n == RENDER_ATTRIBUTE).map(|(_, v)| parse_fields(v)).unwrap_or_default();
         let get = |k: &str| fields.iter().find(|(n, _)| n == k).map(|(_, v)| v.as_str());

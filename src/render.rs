@@ -189,7 +189,7 @@ pub struct PassReport<'a> {
     /// Seconds since the first pass began.
     pub elapsed_seconds: f64,
     pub image: &'a Image,
-    /// The exact sums behind `image` (samples `[0, spp_done)`): what a
+    /// The exact sums behind `image` (samples `[0, spp_done)`, or the ranges of a resumed distributed render): what a
     /// checkpoint saves ([`FilmState::to_bytes`]).
     pub state: &'a FilmState,
 }
@@ -231,10 +231,12 @@ pub fn render_passes<S: Spectrum>(
 }
 
 /// [`render_passes`], continuing from `resume` (a state of this scene and
-/// mode holding samples `[0, k)`, e.g. from a checkpoint) if given, and also
+/// mode holding samples `[0, k)`, e.g. from a checkpoint, or any complete
+/// sample ranges, e.g. from a distributed render) if given, and also
 /// returning the final [`FilmState`] (for checkpoints and merging). The
-/// passes are those of [`pass_schedule`] that end after `k`; the result is
-/// bit-identical to an uninterrupted render.
+/// passes are those of [`pass_schedule`] that miss samples, each rendering
+/// the samples it misses; the result is bit-identical to an uninterrupted
+/// render.
 pub fn render_progressive<S: Spectrum>(
     scene: &Scene,
     options: &RenderOptions,
@@ -249,23 +251,37 @@ pub fn render_progressive<S: Spectrum>(
         Some(s) => {
             let fresh = FilmState::empty(state_header::<S>(scene));
             fresh.check_compatible(&s).map_err(|e| anyhow::anyhow!("cannot resume: {}", e.to_string().trim_start_matches("cannot merge film states: ")))?;
-            if s.prefix().is_none() || !s.header.complete {
-                anyhow::bail!("cannot resume: the saved state does not hold a complete prefix [0, k) of the samples");
+            if !s.header.complete {
+                anyhow::bail!("cannot resume: the saved state is of a render stopped part-way through a pass (not every pixel has its samples)");
             }
             s
         }
         None => FilmState::empty(state_header::<S>(scene)),
     };
-    let done = state.prefix().unwrap_or(0);
-    let schedule: Vec<u32> = pass_schedule(spp, options.passes).into_iter().filter(|&e| e > done).collect();
+    // Each pass of the schedule renders the samples it misses (all of them
+    // without a resume; those after k for a resume of [0, k)).
+    let mut schedule: Vec<(u32, Vec<Range<u32>>)> = vec![];
+    let mut begin = 0;
+    for end in pass_schedule(spp, options.passes) {
+        let holes = missing(state.ranges(), begin..end);
+        if !holes.is_empty() {
+            schedule.push((end, holes));
+        }
+        begin = end;
+    }
     let pixels = scene.film.crop[2] as u64 * scene.film.crop[3] as u64;
-    let bar = progress_bar(options, pixels * (spp - done) as u64);
+    let bar = progress_bar(options, pixels * (spp - state.spp().min(spp)) as u64);
     let start = Instant::now();
     let mut rendered = 0u64;
     let mut partial = None;
-    let mut begin = done;
-    for (k, &end) in schedule.iter().enumerate() {
-        let pass = render_range::<S>(scene, options, threads, begin..end, &bar)?;
+    for (k, (_, holes)) in schedule.iter().enumerate() {
+        let mut pass = render_range::<S>(scene, options, threads, holes[0].clone(), &bar)?;
+        for hole in &holes[1..] {
+            if !pass.header.complete {
+                break;
+            }
+            pass.merge(&render_range::<S>(scene, options, threads, hole.clone(), &bar)?)?;
+        }
         rendered += pass.header.samples_taken;
         if !pass.header.complete {
             // Abandoned: keep the complete passes, or this one if there is none.
@@ -279,12 +295,11 @@ pub fn render_progressive<S: Spectrum>(
         } else {
             state.merge(&pass)?;
         }
-        begin = end;
         let image = state.develop();
         on_pass(&PassReport {
             pass: k as u32 + 1,
             passes: schedule.len() as u32,
-            spp_done: end,
+            spp_done: state.spp(),
             spp_total: spp,
             elapsed_seconds: start.elapsed().as_secs_f64(),
             image: &image,
@@ -299,6 +314,25 @@ pub fn render_progressive<S: Spectrum>(
     let result = partial.unwrap_or(state);
     let stats = RenderStats::new(scene, spp, threads, seconds, rendered, &result);
     Ok((result.develop(), stats, result))
+}
+
+/// The parts of `range` that none of `held` (sorted, disjoint) covers.
+fn missing(held: &[Range<u32>], range: Range<u32>) -> Vec<Range<u32>> {
+    let mut out = vec![];
+    let mut at = range.start;
+    for h in held {
+        if h.end <= at || h.start >= range.end {
+            continue;
+        }
+        if h.start > at {
+            out.push(at..h.start);
+        }
+        at = at.max(h.end);
+    }
+    if at < range.end {
+        out.push(at..range.end);
+    }
+    out
 }
 
 /// Renders samples `samples` (a range of sample indices) of every pixel of
@@ -320,6 +354,48 @@ pub fn render_samples<S: Spectrum>(scene: &Scene, options: &RenderOptions, sampl
     let pixels = scene.film.crop[2] as u64 * scene.film.crop[3] as u64;
     let bar = progress_bar(options, pixels * samples.len() as u64);
     let state = render_range::<S>(scene, options, thread_count(options), samples, &bar)?;
+    bar.finish_and_clear();
+    Ok(state)
+}
+
+/// Renders samples `samples` of the pixels of the tile `pixels` (x, y,
+/// width, height in crop-window coordinates) and returns their sums, with
+/// those the filter spreads beyond the tile ([`FilmState::empty_tile`]).
+/// The states of tiles covering the window add up
+/// ([`FilmState::merge_tiles`]) to exactly the state [`render_samples`]
+/// returns: every sample is seeded by its pixel's place in the full film and
+/// lands at the same film position, whatever the tile. For light tracing,
+/// a tile is the light paths of its pixels; their splats land anywhere, so
+/// its state keeps the whole window.
+pub fn render_tile_samples<S: Spectrum>(scene: &Scene, options: &RenderOptions, samples: Range<u32>, pixels: [u32; 4]) -> anyhow::Result<FilmState> {
+    if samples.start > samples.end || samples.end > scene.sampler.sample_count {
+        anyhow::bail!(
+            "sample range {}..{} is outside the render's {} samples per pixel",
+            samples.start,
+            samples.end,
+            scene.sampler.sample_count
+        );
+    }
+    let header = state_header::<S>(scene);
+    let particle = matches!(scene.integrator, Integrator::Particle(_));
+    let reach = if particle { u32::MAX } else { (scene.film.filter.radius() + 0.5).ceil() as u32 };
+    // The budget holds for the tile's window (a tile exists to render a film
+    // too large for one machine's memory).
+    let [_, _, cw, ch] = scene.film.crop;
+    let window = |n: u32, size: u32| (n as u64 + 2 * reach.min(size) as u64).min(size as u64);
+    let need = window(pixels[2], cw) * window(pixels[3], ch) * header.layout.stride() as u64 * 16 * 2;
+    if need > crate::limits::max_film_bytes() {
+        anyhow::bail!(
+            "the tile of {} × {} pixels needs about {} MB while rendering, above the budget of {} MB (use smaller tiles, or raise the budget with SNELL_MAX_FILM_BYTES)",
+            pixels[2],
+            pixels[3],
+            need.div_ceil(1 << 20),
+            crate::limits::max_film_bytes().div_ceil(1 << 20)
+        );
+    }
+    let state = FilmState::empty_tile(header, pixels, reach)?;
+    let bar = progress_bar(options, pixels[2] as u64 * pixels[3] as u64 * samples.len() as u64);
+    let state = render_into::<S>(scene, options, thread_count(options), samples, &bar, state)?;
     bar.finish_and_clear();
     Ok(state)
 }
@@ -367,22 +443,36 @@ fn state_header<S: Spectrum>(scene: &Scene) -> StateHeader {
 /// One pass: samples `samples` of every pixel, by whichever loop the
 /// integrator needs.
 fn render_range<S: Spectrum>(scene: &Scene, options: &RenderOptions, threads: usize, samples: Range<u32>, bar: &ProgressBar) -> anyhow::Result<FilmState> {
+    let state = FilmState::empty(state_header::<S>(scene));
+    render_into::<S>(scene, options, threads, samples, bar, state)
+}
+
+/// Renders samples `samples` of the pixels of `state` (the whole crop
+/// window, or a tile: [`FilmState::pixels`]) into it.
+fn render_into<S: Spectrum>(
+    scene: &Scene,
+    options: &RenderOptions,
+    threads: usize,
+    samples: Range<u32>,
+    bar: &ProgressBar,
+    mut state: FilmState,
+) -> anyhow::Result<FilmState> {
     let pool = thread_pool(threads)?;
-    let mut state = FilmState::empty(state_header::<S>(scene));
     if samples.is_empty() {
         return Ok(state);
     }
+    let rect = state.pixels();
     let (taken, invalid) = if let Integrator::Particle(tracer) = &scene.integrator {
-        render_particles::<S>(scene, tracer, options, &pool, &samples, &mut state, bar)
+        render_particles::<S>(scene, tracer, options, &pool, &samples, rect, &mut state, bar)
     } else if let Integrator::Bdpt(bdpt) = &scene.integrator {
         if S::POLARIZED {
             anyhow::bail!("the bdpt integrator renders in the rgb and spectral modes only, not in a polarized mode; use path for polarization");
         }
-        render_bdpt::<S>(scene, bdpt, options, &pool, &samples, &mut state, bar)?
+        render_bdpt::<S>(scene, bdpt, options, &pool, &samples, rect, &mut state, bar)?
     } else {
-        render_camera::<S>(scene, options, &pool, &samples, &mut state, bar)
+        render_camera::<S>(scene, options, &pool, &samples, rect, &mut state, bar)
     };
-    let planned = scene.film.crop[2] as u64 * scene.film.crop[3] as u64 * samples.len() as u64;
+    let planned = rect[2] as u64 * rect[3] as u64 * samples.len() as u64;
     state.header.samples_taken = taken;
     state.header.invalid_samples = invalid;
     state.header.complete = taken == planned;
@@ -399,12 +489,15 @@ fn render_camera<S: Spectrum>(
     options: &RenderOptions,
     pool: &rayon::ThreadPool,
     samples: &Range<u32>,
+    rect: [u32; 4],
     state: &mut FilmState,
     bar: &ProgressBar,
 ) -> (u64, u64) {
     // The crop window (the whole film unless the scene crops): pixels are
-    // numbered within it, the camera sees the full film.
-    let [ox, oy, w, h] = scene.film.crop;
+    // numbered within it, the camera sees the full film. `rect` is the part
+    // rendered (the whole window, or a tile of a distributed render).
+    let [ox, oy, _, _] = scene.film.crop;
+    let [rx, ry, rw, rh] = rect;
     let taken = AtomicU64::new(0);
     let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
     let up = scene.camera.up();
@@ -415,9 +508,9 @@ fn render_camera<S: Spectrum>(
     let n_extra = layout.extra.len();
 
     let mut tiles = vec![];
-    for ty in (0..h).step_by(TILE as usize) {
-        for tx in (0..w).step_by(TILE as usize) {
-            tiles.push((tx, ty, TILE.min(w - tx), TILE.min(h - ty)));
+    for ty in (ry..ry + rh).step_by(TILE as usize) {
+        for tx in (rx..rx + rw).step_by(TILE as usize) {
+            tiles.push((tx, ty, TILE.min(rx + rw - tx), TILE.min(ry + rh - ty)));
         }
     }
     let invalid = AtomicU64::new(0);
@@ -492,11 +585,14 @@ fn render_particles<S: Spectrum>(
     options: &RenderOptions,
     pool: &rayon::ThreadPool,
     samples: &Range<u32>,
+    rect: [u32; 4],
     state: &mut FilmState,
     bar: &ProgressBar,
 ) -> (u64, u64) {
     // Paths land anywhere on the full film; only the crop window is kept.
+    // `rect`: the pixels whose paths are traced (the window, or a tile).
     let [ox, oy, w, h] = scene.film.crop;
+    let [rx, ry, rw, rh] = rect;
     let offset = Vec2::new(ox as f32, oy as f32);
     let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
     let layout = state.header.layout.clone();
@@ -511,12 +607,12 @@ fn render_particles<S: Spectrum>(
         loop {
             let y = next_row.fetch_add(1, Ordering::Relaxed);
             // A row of pixels is the unit of work that a stop request lets finish.
-            if y >= h as u64 || options.stopped() {
+            if y >= rh as u64 || options.stopped() {
                 break;
             }
-            let y = y as u32;
-            taken.fetch_add(w as u64 * samples.len() as u64, Ordering::Relaxed);
-            for x in 0..w {
+            let y = ry + y as u32;
+            taken.fetch_add(rw as u64 * samples.len() as u64, Ordering::Relaxed);
+            for x in rx..rx + rw {
                 for index in samples.clone() {
                     let mut sampler = Sampler::start(&light, x + ox, y + oy, index);
                     let mut wl = S::sample_wavelengths(sampler.next_1d());
@@ -529,7 +625,7 @@ fn render_particles<S: Spectrum>(
                     });
                 }
             }
-            bar.inc(w as u64 * samples.len() as u64);
+            bar.inc(rw as u64 * samples.len() as u64);
         }
         if bad > 0 {
             invalid.fetch_add(bad, Ordering::Relaxed);
@@ -557,13 +653,17 @@ fn render_bdpt<S: Spectrum>(
     options: &RenderOptions,
     pool: &rayon::ThreadPool,
     samples: &Range<u32>,
+    rect: [u32; 4],
     state: &mut FilmState,
     bar: &ProgressBar,
 ) -> anyhow::Result<(u64, u64)> {
     let crate::sensor::Camera::Perspective(camera) = &scene.camera else {
         anyhow::bail!("bdpt needs a perspective sensor");
     };
+    // `rect`: the pixels whose samples are taken (the window, or a tile);
+    // light-image splats land anywhere in the window.
     let [ox, oy, w, h] = scene.film.crop;
+    let [rx, ry, rw, rh] = rect;
     let offset = Vec2::new(ox as f32, oy as f32);
     let inv_size = Vec2::new(1.0 / scene.film.width as f32, 1.0 / scene.film.height as f32);
     let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
@@ -581,12 +681,12 @@ fn render_bdpt<S: Spectrum>(
         let mut bad = 0u64;
         loop {
             let y = next_row.fetch_add(1, Ordering::Relaxed);
-            if y >= h as u64 || options.stopped() {
+            if y >= rh as u64 || options.stopped() {
                 break;
             }
-            let y = y as u32;
-            taken.fetch_add(w as u64 * samples.len() as u64, Ordering::Relaxed);
-            for x in 0..w {
+            let y = ry + y as u32;
+            taken.fetch_add(rw as u64 * samples.len() as u64, Ordering::Relaxed);
+            for x in rx..rx + rw {
                 for index in samples.clone() {
                     let mut sampler = Sampler::start(&scene.sampler, x + ox, y + oy, index);
                     let mut wl = S::sample_wavelengths(sampler.next_1d());
@@ -611,7 +711,7 @@ fn render_bdpt<S: Spectrum>(
                     sink.add_sample(&scene.film.filter, pos, rgb, None, &extra);
                 }
             }
-            bar.inc(w as u64 * samples.len() as u64);
+            bar.inc(rw as u64 * samples.len() as u64);
         }
         if bad > 0 {
             invalid.fetch_add(bad, Ordering::Relaxed);
@@ -644,7 +744,16 @@ fn camera_stokes<S: Spectrum>(l: &S, d: Vec3, up: Vec3, wl: &S::Wavelengths) -> 
 
 #[cfg(test)]
 mod tests {
-    use super::pass_schedule;
+    use super::{missing, pass_schedule};
+
+    #[test]
+    fn missing_ranges_are_the_complement() {
+        assert_eq!(missing(&[], 0..8), vec![0..8]);
+        assert_eq!(missing(&[0..4], 0..8), vec![4..8]);
+        assert_eq!(missing(&[2..3, 5..6], 0..8), vec![0..2, 3..5, 6..8]);
+        assert_eq!(missing(&[0..2, 4..9], 1..8), vec![2..4]);
+        assert!(missing(&[0..8], 2..6).is_empty());
+    }
 
     #[test]
     fn pass_schedule_grows_and_ends_at_the_sample_count() {

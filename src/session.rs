@@ -132,6 +132,17 @@ pub fn render_samples(scene: &Scene, mode: Mode, options: &RenderOptions, sample
     }
 }
 
+/// [`render_samples`] for the pixels of one tile (x, y, width, height in
+/// crop-window coordinates): see [`crate::render::render_tile_samples`].
+pub fn render_tile_samples(scene: &Scene, mode: Mode, options: &RenderOptions, samples: std::ops::Range<u32>, tile: [u32; 4]) -> anyhow::Result<FilmState> {
+    match mode {
+        Mode::Rgb => crate::render::render_tile_samples::<Rgb>(scene, options, samples, tile),
+        Mode::Spectral => crate::render::render_tile_samples::<Sampled>(scene, options, samples, tile),
+        Mode::RgbPolarized => crate::render::render_tile_samples::<Polarized<Rgb>>(scene, options, samples, tile),
+        Mode::SpectralPolarized => crate::render::render_tile_samples::<Polarized<Sampled>>(scene, options, samples, tile),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -8,7 +8,10 @@ sizes from 1 spp up, (distributed time on 1 CPU − one-thread render
 time) / tasks, and the overhead as a share of the render. Needs the snell
 package and ray in the Python that runs it.
 
-Usage: python tools/ray_scaling.py [--res 64] [--spp 256] [--runs 3]
+With --tiles T, also renders in tiles of T x T pixels at the same chunk
+size (tasks = chunks x tiles) and reports the cost per extra task.
+
+Usage: python tools/ray_scaling.py [--res 64] [--spp 256] [--runs 3] [--tiles T]
 """
 import argparse
 import statistics
@@ -40,6 +43,7 @@ def main():
     ap.add_argument("--spp", type=int, default=256)
     ap.add_argument("--chunk-spp", type=int, default=16)
     ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--tiles", type=int, default=0)
     args = ap.parse_args()
     params = {"res": args.res}
     scene = snell.load_file(SCENE, **params)
@@ -51,6 +55,14 @@ def main():
         t, img = timed(lambda: dist.render(SCENE, args.spp, seed=0, params=params, chunk_spp=args.chunk_spp), args.runs)
         assert np.array_equal(img, ref), "distributed image differs"
         print(f"{cpus} worker CPU(s), chunk {args.chunk_spp} spp: {t:.3f} s, speed-up {single / t:.2f}x over one thread")
+        if args.tiles:
+            n = len(dist.tiling(args.res, args.res, args.tiles))
+            tt, img = timed(lambda: dist.render(SCENE, args.spp, seed=0, params=params, chunk_spp=args.chunk_spp, tiles=args.tiles), args.runs)
+            assert np.array_equal(img, ref), "tiled image differs"
+            chunks = -(-args.spp // args.chunk_spp)
+            extra = chunks * (n - 1)
+            print(f"  in {n} tiles of {args.tiles}²: {tt:.3f} s ({chunks * n} tasks), "
+                  f"{1000 * (tt - t) / max(extra, 1):.2f} ms per extra task ({cpus} CPUs)")
         if cpus == 1:
             print("chunk_spp  tasks  seconds  overhead/task (ms)  overhead share")
             for chunk in (1, 2, 4, 8, 16, 32, 64):

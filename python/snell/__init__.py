@@ -54,6 +54,7 @@ __all__ = [
     "variant",
     "variants",
     "cli_main",
+    "Preview",
 ]
 
 __version__ = "0.1.0"
@@ -560,6 +561,8 @@ def cli_main() -> None:
     """The ``snell`` command (``snell render SCENE ...``), as the Rust binary."""
     sys.exit(_snell.cli_main(["snell"] + sys.argv[1:]))
 
+
+from ._preview import Preview  # noqa: E402
 
 # Location attributes exist on every SceneError (None when not known).
 for _name in ("file", "line", "column", "message", "help"):

@@ -15,14 +15,25 @@ workers or the order in which tasks finish.
   textures it names, or the folder given as ``assets``) is packed once into
   Ray's object store; each node unpacks it once into a cache folder, and
   each worker process loads the scene once.
+  A dictionary's files (its ``filename`` entries) are shipped the same way.
+* Tiles (``tiles=``): for films too large for one task, the image is split
+  into tiles as well; a tile's state keeps the border its reconstruction
+  filter spreads samples into, and the tiles of a chunk add up exactly
+  (``FilmState::merge_tiles``): still bit-identical.
 * Faults: a task whose worker dies is run again by Ray (``max_retries``).
-  With ``checkpoint=PATH`` the driver writes the merged state after every
-  chunk (atomically: temporary file and rename); calling ``render`` again
-  with the same checkpoint renders only the chunks it does not hold.
-* Progress: ``progress(fraction, image_so_far)``, as :func:`snell.render`.
+  With ``checkpoint=PATH.exr`` the driver writes the image and the merged
+  state after every chunk (atomically), in the format of the command line's
+  ``--write-every``: calling ``render`` again with the same checkpoint
+  renders only the chunks it does not hold, and ``snell render SCENE
+  --resume PATH.exr`` finishes it too (and the other way round). The tiles
+  of a chunk not yet complete are not in the checkpoint.
+* Progress: ``progress(fraction, image_so_far)``, as :func:`snell.render`;
+  ``preview=PORT`` (or a :class:`snell.Preview`) shows the render in the
+  page of ``snell render --preview``.
 
 Command line: ``python -m snell.distributed SCENE --spp N -o OUT.exr
-[--address auto] [--chunk-spp K] [--checkpoint FILE]``.
+[--address auto] [--chunk-spp K] [--tiles W[xH]] [--checkpoint FILE.exr]
+[--checkpoint-every S] [--preview [PORT]]``.
 """
 
 from __future__ import annotations
@@ -36,11 +47,14 @@ import sys
 import tempfile
 import time
 import zipfile
-from typing import Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
+from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from . import _array, _mode, _params, _snell, dict_to_xml
+
+if TYPE_CHECKING:
+    from ._preview import Preview
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -91,14 +105,16 @@ def _load(source: Tuple[Any, ...], packed: Optional[bytes]) -> Any:
     return _SCENES[key]
 
 
-def _render_chunk(source: Tuple[Any, ...], packed: Optional[bytes], mode: str, start: int, end: int, threads: int) -> bytes:
-    """A Ray task: samples [start, end) of every pixel, as film-state bytes."""
+def _render_chunk(source: Tuple[Any, ...], packed: Optional[bytes], mode: str, start: int, end: int, threads: int,
+                  tile: Optional[Tuple[int, int, int, int]] = None) -> bytes:
+    """A Ray task: samples [start, end) of every pixel (of `tile`, if given),
+    as film-state bytes."""
     pid_dir = os.environ.get("SNELL_DISTRIBUTED_PID_DIR")
     if pid_dir:  # testing aid: lets a test kill the worker mid-task
         with open(os.path.join(pid_dir, f"{os.getpid()}-{start}"), "w") as f:
             f.write(str(os.getpid()))
     scene = _load(source, packed)
-    return _snell.render_samples(scene, mode, start, end, threads)
+    return _snell.render_samples(scene, mode, start, end, threads, tile)
 
 
 def chunks(spp: int, chunk_spp: int, held: Sequence[Tuple[int, int]] = ()) -> List[Tuple[int, int]]:
@@ -122,21 +138,58 @@ def chunks(spp: int, chunk_spp: int, held: Sequence[Tuple[int, int]] = ()) -> Li
     return out
 
 
-def _write_atomically(path: str, data: bytes) -> None:
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".snell-checkpoint-", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+def tiling(width: int, height: int, tiles: Union[int, Tuple[int, int]]) -> List[Tuple[int, int, int, int]]:
+    """Tiles (x, y, w, h) of at most `tiles` (an int: square) pixels covering
+    a `width` x `height` window, row by row."""
+    tw, th = (tiles, tiles) if isinstance(tiles, int) else tiles
+    tw, th = int(tw), int(th)
+    if tw < 1 or th < 1:
+        raise ValueError(f"tiles={tiles!r}: a tile needs at least 1 x 1 pixels")
+    return [(x, y, min(tw, width - x), min(th, height - y)) for y in range(0, height, th) for x in range(0, width, tw)]
+
+
+def _files(d: Any) -> List[str]:
+    """The existing files that a scene dictionary names (``filename`` values)."""
+    out: List[str] = []
+    if isinstance(d, Mapping):
+        for k, v in d.items():
+            if k == "filename" and isinstance(v, (str, os.PathLike)) and os.path.isfile(os.fspath(v)):
+                out.append(os.path.abspath(os.fspath(v)))
+            else:
+                out.extend(_files(v))
+    return out
+
+
+def _relocated(d: Any, names: Mapping[str, str]) -> Any:
+    """`d` with the ``filename`` values in `names` replaced by theirs."""
+    if not isinstance(d, Mapping):
+        return d
+    out = {}
+    for k, v in d.items():
+        if k == "filename" and isinstance(v, (str, os.PathLike)) and os.path.isfile(os.fspath(v)):
+            out[k] = names[os.path.abspath(os.fspath(v))]
+        else:
+            out[k] = _relocated(v, names)
+    return out
+
+
+def _pack_files(files: Sequence[str]) -> Tuple[bytes, Dict[str, str]]:
+    """The files zipped, each as ``files/<k>/<its name>``, and those names."""
+    names: Dict[str, str] = {}
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
+        for f in sorted(set(files)):
+            names[f] = f"files/{len(names)}/{os.path.basename(f)}"
+            z.write(f, names[f])
+    return buf.getvalue(), names
+
+
+def _checkpoint_path(checkpoint: PathLike) -> str:
+    path = os.fspath(checkpoint)
+    if not path.lower().endswith(".exr"):
+        raise ValueError(f"checkpoint {path}: a checkpoint is an .exr (the image, with the exact state in its header, as the "
+                         "command line's --write-every writes); name it NAME.exr")
+    return path
 
 
 def render(
@@ -145,13 +198,16 @@ def render(
     *,
     address: Optional[str] = None,
     chunk_spp: Optional[int] = None,
+    tiles: Optional[Union[int, Tuple[int, int]]] = None,
     seed: int = 0,
     mode: Optional[str] = None,
     params: Optional[Mapping[str, Any]] = None,
     assets: Optional[PathLike] = None,
     threads_per_task: int = 1,
     checkpoint: Optional[PathLike] = None,
+    checkpoint_every: float = 0.0,
     progress: Optional[Callable[[float, np.ndarray], Any]] = None,
+    preview: Optional[Union[int, "Preview"]] = None,
     max_retries: int = 3,
 ) -> np.ndarray:
     """Render `scene` (an XML file, or Mitsuba's dictionary form) on a Ray
@@ -162,80 +218,145 @@ def render(
       uses a cluster already joined by ``ray.init`` or starts a local one;
     * ``chunk_spp``: samples per task (default: about four tasks per CPU of
       the cluster);
+    * ``tiles``: also split the image into tiles of at most this many
+      pixels (an int: square tiles; or (width, height)), for films too
+      large for one task: a task is then a chunk of samples of one tile, and
+      each worker keeps only its tile and the border its filter reaches.
+      The image is still bit-identical;
     * ``params``: the scene's ``<default>`` parameters (``-D``);
     * ``assets``: the folder shipped to the workers (default: the scene
-      file's folder; for a dictionary, none — its files must be reachable
-      on every node by absolute path);
+      file's folder; for a dictionary, the files its ``filename`` entries
+      name);
     * ``threads_per_task``: worker threads (and Ray CPUs) per task;
-    * ``checkpoint``: a file holding the merged state after every chunk; an
-      existing one is resumed;
-    * ``progress(fraction, image)``: called after every chunk.
+    * ``checkpoint``: an ``.exr`` holding the image and the exact state of
+      the chunks merged so far, written atomically (at most every
+      ``checkpoint_every`` seconds, and at the end) in the command line's
+      format: ``snell render SCENE --resume CHECKPOINT.exr`` finishes it,
+      and an existing one (also one the command line wrote) is resumed;
+    * ``progress(fraction, image)``: called after every chunk;
+    * ``preview``: a port (0: any free one; the page's address is printed)
+      or a :class:`snell.Preview` to show the render in, after every chunk.
+      The page's Stop button ends the render with the chunks merged so far.
     """
     import ray
+
+    from . import Preview, read
 
     if not ray.is_initialized():
         ray.init(address=address, include_dashboard=False, log_to_driver=False)
     mode = _mode(mode)
     given = _params(params or {})
+    defines = [f"{k}={v}" for k, v in given.items()]
+    packed_bytes: Optional[bytes] = None
     if isinstance(scene, Mapping):
         text = dict_to_xml(scene)
-        digest = hashlib.sha256(text.encode()).hexdigest()[:24]
+        source_bytes = text.encode()
         folder = os.fspath(assets) if assets is not None else None
         name = "<dict>"
         local = _snell.load_string(text, os.path.join(folder or os.getcwd(), name), given, spp, seed)
         kind = "xml"
+        if folder is None:
+            # Ship the files the dictionary names; workers read them from the
+            # unpacked folder (relative names resolve against the scene's).
+            files = _files(scene)
+            if files:
+                packed_bytes, names = _pack_files(files)
+                text = dict_to_xml(_relocated(scene, names))
     else:
         path = os.path.abspath(os.fspath(scene))
         folder = os.fspath(assets) if assets is not None else os.path.dirname(path)
         name = os.path.relpath(path, folder)
         text = ""
+        with open(path, "rb") as f:
+            source_bytes = f.read()
         local = _snell.load_file(path, given, spp, seed)
         kind = "file"
     # The driver loads the scene too: errors show here, and it knows the
     # sample count (as the sampler rounds it).
     total = local.spp
-    packed_bytes = _pack(folder) if folder is not None else None
-    if packed_bytes is not None:
-        digest = hashlib.sha256(packed_bytes + name.encode() + text.encode()).hexdigest()[:24]
+    if folder is not None:
+        packed_bytes = _pack(folder)
+    digest = hashlib.sha256((packed_bytes or b"") + name.encode() + text.encode()).hexdigest()[:24]
     source = (kind, digest, name, text, tuple(sorted(given.items())), spp, seed)
 
     state: Optional[bytes] = None
     held: List[Tuple[int, int]] = []
-    if checkpoint is not None and os.path.exists(checkpoint):
-        with open(checkpoint, "rb") as f:
-            state = f.read()
-        ranges, count, complete = _snell.state_info(state)
-        if count != total or not complete:
-            raise ValueError(f"checkpoint {os.fspath(checkpoint)} is of another render ({count} spp, complete={complete}); delete it or render with the same scene, spp, seed and mode")
+    ckpt = _checkpoint_path(checkpoint) if checkpoint is not None else None
+    if ckpt is not None and os.path.exists(ckpt):
+        state = _snell.checkpoint_read(local, source_bytes, defines, mode, ckpt)
+        if state is None:
+            # A finished render of the command line (it keeps no state).
+            return read(ckpt)
+        ranges, _, _ = _snell.state_info(state)
         held = list(ranges)
 
+    _, _, width, height = local.crop
+    rects: List[Optional[Tuple[int, int, int, int]]] = [None] if tiles is None else list(tiling(width, height, tiles))
     if chunk_spp is None:
         cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
-        chunk_spp = max(1, -(-total // (4 * cpus)))
+        chunk_spp = max(1, -(-total // max(1, (4 * cpus) // len(rects))))
     todo = chunks(total, int(chunk_spp), held)
+
+    own_preview = isinstance(preview, int) and not isinstance(preview, bool)
+    view: Optional[Preview] = Preview(preview, mode=mode, size=(width, height)) if own_preview else (preview or None)
+    if own_preview:
+        print(f"preview: {view.url}", file=sys.stderr)
     task = ray.remote(_render_chunk).options(max_retries=max_retries, num_cpus=threads_per_task)
     packed = ray.put(packed_bytes) if packed_bytes is not None else None
-    pending = {task.remote(source, packed, mode, a, b, threads_per_task): (a, b) for a, b in todo}
+    # Chunk-major: the tiles of a chunk finish together, so few chunks wait
+    # for their last tile.
+    pending = {task.remote(source, packed, mode, a, b, threads_per_task, rect): (k, rect)
+               for k, (a, b) in enumerate(todo) for rect in rects}
+    parts: Dict[int, List[bytes]] = {}
     done_spp = sum(b - a for a, b in held)
-    while pending:
-        ready, _ = ray.wait(list(pending), num_returns=1)
-        for ref in ready:
-            a, b = pending.pop(ref)
-            part = ray.get(ref)
-            state = part if state is None else _snell.state_merge(state, part)
-            done_spp += b - a
-            if checkpoint is not None:
-                _write_atomically(os.fspath(checkpoint), state)
-            if progress is not None:
-                data, h, w, names, _ = _snell.state_develop(state)
-                try:
+    merged = 0
+    last_write = time.monotonic()
+    stopped = False
+    try:
+        while pending:
+            if view is not None and view.stop_requested:
+                stopped = True
+                break
+            ready, _ = ray.wait(list(pending), num_returns=1, timeout=0.25)
+            for ref in ready:
+                k, rect = pending.pop(ref)
+                part = ray.get(ref)
+                if rect is None:
+                    state = part if state is None else _snell.state_merge(state, part)
+                else:
+                    parts.setdefault(k, []).append(part)
+                    if len(parts[k]) < len(rects):
+                        continue
+                    state = _snell.state_merge_tiles(state, parts.pop(k))
+                a, b = todo[k]
+                done_spp += b - a
+                merged += 1
+                if ckpt is not None and (not pending or time.monotonic() - last_write >= checkpoint_every):
+                    _snell.checkpoint_write(local, source_bytes, defines, mode, state, ckpt)
+                    last_write = time.monotonic()
+                if view is not None:
+                    view.update(state, done_spp, total, pass_=merged, passes=len(todo))
+                if progress is not None:
+                    data, h, w, names, _ = _snell.state_develop(state)
                     progress(done_spp / total, _array(data, h, w, names))
-                except BaseException:
-                    for r in pending:
-                        ray.cancel(r)
-                    raise
+    except BaseException:
+        for r in pending:
+            ray.cancel(r)
+        if view is not None:
+            view.finish(interrupted=True)
+        if own_preview:
+            view.close()
+        raise
+    for r in pending:
+        ray.cancel(r)
+    if stopped and ckpt is not None and state is not None:
+        _snell.checkpoint_write(local, source_bytes, defines, mode, state, ckpt)
+    if view is not None:
+        view.finish(interrupted=stopped)
+        if own_preview:
+            view.close()
     if state is None:
-        raise RuntimeError("no samples were rendered")
+        raise RuntimeError("no samples were rendered" + (" (stopped from the preview page)" if stopped else ""))
     data, h, w, names, _ = _snell.state_develop(state)
     return _array(data, h, w, names)
 
@@ -249,16 +370,26 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ap.add_argument("--mode", default=None)
     ap.add_argument("--address", default=None, help='the Ray cluster ("auto" to join the local one)')
     ap.add_argument("--chunk-spp", type=int)
+    ap.add_argument("--tiles", metavar="W[xH]", help="also split the image into tiles of at most W x H pixels")
+    ap.add_argument("--preview", type=int, nargs="?", const=8730, metavar="PORT",
+                    help="watch the render in the browser (the page of snell render --preview; 0: any free port)")
+    ap.add_argument("--checkpoint-every", type=float, default=0.0, metavar="S")
     ap.add_argument("--threads-per-task", type=int, default=1)
-    ap.add_argument("--checkpoint")
+    ap.add_argument("--checkpoint", metavar="FILE.exr",
+                    help="keep the merged state in this .exr (snell render --resume reads it); resumed if it exists")
     ap.add_argument("-D", action="append", default=[], metavar="NAME=VALUE")
     args = ap.parse_args(argv)
     params = dict(d.split("=", 1) for d in args.D)
+    tiles = None
+    if args.tiles:
+        w, _, h = args.tiles.lower().partition("x")
+        tiles = (int(w), int(h or w))
     from . import write
 
     start = time.time()
     image = render(args.scene, args.spp, address=args.address, chunk_spp=args.chunk_spp, seed=args.seed, mode=args.mode,
                    params=params, threads_per_task=args.threads_per_task, checkpoint=args.checkpoint,
+                   checkpoint_every=args.checkpoint_every, tiles=tiles, preview=args.preview,
                    progress=lambda f, _img: print(f"\r{100 * f:5.1f} %", end="", file=sys.stderr))
     print(file=sys.stderr)
     write(image, args.output)

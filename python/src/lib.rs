@@ -491,9 +491,15 @@ fn render(
 /// of work of a distributed render. States of disjoint ranges merge exactly
 /// ([`state_merge`]), so any split of the samples over tasks and machines
 /// gives the image of one render, bit for bit. The GIL is released.
+///
+/// With `tile` = (x, y, width, height) in crop-window coordinates, renders
+/// only that tile's pixels: its state keeps the sums of the tile and of the
+/// border the filter spreads its samples into, and the states of tiles
+/// covering the window add up exactly ([`state_merge_tiles`]).
 #[pyfunction]
-#[pyo3(signature = (scene, mode, start, end, threads=0))]
-fn render_samples(py: Python<'_>, scene: &NativeScene, mode: &str, start: u32, end: u32, threads: usize) -> PyResult<Py<PyBytes>> {
+#[pyo3(signature = (scene, mode, start, end, threads=0, tile=None))]
+#[allow(clippy::too_many_arguments)]
+fn render_samples(py: Python<'_>, scene: &NativeScene, mode: &str, start: u32, end: u32, threads: usize, tile: Option<(u32, u32, u32, u32)>) -> PyResult<Py<PyBytes>> {
     guarded(|| {
         let mode = parse_mode(mode)?;
         let scene_ref = scene.lock();
@@ -507,7 +513,10 @@ fn render_samples(py: Python<'_>, scene: &NativeScene, mode: &str, start: u32, e
         let result = py.allow_threads(|| {
             catch_unwind(AssertUnwindSafe(|| {
                 snell::session::prepare(&scene_ref, mode, &what)
-                    .and_then(|()| snell::session::render_samples(&scene_ref, mode, &options, start..end))
+                    .and_then(|()| match tile {
+                        Some((x, y, w, h)) => snell::session::render_tile_samples(&scene_ref, mode, &options, start..end, [x, y, w, h]),
+                        None => snell::session::render_samples(&scene_ref, mode, &options, start..end),
+                    })
                     .map(|state| state.to_bytes())
             }))
         });
@@ -652,6 +661,171 @@ fn cli_main(py: Python<'_>, args: Vec<String>) -> PyResult<u8> {
     })
 }
 
+/// Adds the states of `tiles` (tiles covering the crop window once, each
+/// holding the same sample ranges) to `state` (a state of the whole window,
+/// or None: an empty one), exactly: see `FilmState::merge_tiles`.
+#[pyfunction]
+#[pyo3(signature = (state, tiles))]
+fn state_merge_tiles(py: Python<'_>, state: Option<&[u8]>, tiles: Vec<Vec<u8>>) -> PyResult<Py<PyBytes>> {
+    guarded(|| {
+        let tiles = tiles.iter().map(|t| film_state(t)).collect::<PyResult<Vec<_>>>()?;
+        let first = tiles.first().ok_or_else(|| PyValueError::new_err("no tiles to merge"))?;
+        let mut state = match state {
+            Some(s) => film_state(s)?,
+            None => snell::film::FilmState::empty(first.header.clone()),
+        };
+        py.allow_threads(|| state.merge_tiles(&tiles)).map_err(|e| PyValueError::new_err(format!("{e:#}")))?;
+        Ok(PyBytes::new(py, &state.to_bytes()).unbind())
+    })
+}
+
+/// The command line's checkpoints of a render of `scene` in `mode`, the
+/// scene's file holding `source` (for a dictionary: its XML), with `-D`
+/// definitions `defines` (each NAME=VALUE).
+fn checkpoint_of(scene: &NativeScene, source: &[u8], defines: &[String], mode: &str) -> PyResult<snell::cli::Checkpoint> {
+    let mode = parse_mode(mode)?;
+    Ok(snell::cli::Checkpoint::of(source, defines, &scene.lock(), mode))
+}
+
+/// Writes film state `state` to `path` as the command line's checkpoints
+/// are written (`--write-every`, `--resume`): an EXR of its image whose
+/// header holds the render's identity (`snell.render`) and the exact state
+/// (`snell.state`), written atomically. The state is kept even when the
+/// render is finished.
+#[pyfunction]
+fn checkpoint_write(py: Python<'_>, scene: &NativeScene, source: &[u8], defines: Vec<String>, mode: &str, state: &[u8], path: PathBuf) -> PyResult<()> {
+    guarded(|| {
+        let checkpoint = checkpoint_of(scene, source, &defines, mode)?;
+        let state = film_state(state)?;
+        py.allow_threads(|| {
+            let mut meta = checkpoint.metadata(Some(&state));
+            if meta.state.is_none() && state.header.complete {
+                meta.state = Some(state.to_bytes());
+            }
+            snell::film::output::write_image_with(&state.develop(), &path, &meta)
+        })
+        .map_err(|e| PyOSError::new_err(format!("{e:#}")))
+    })
+}
+
+/// Reads the checkpoint `path` of a render of `scene` (see
+/// [`checkpoint_write`]): (the state's bytes, or None when the file holds
+/// no state: a finished render of the command line). A checkpoint of
+/// another render (scene file, -D, size, spp, seed or mode) is refused
+/// with `ValueError`, as `--resume` refuses it.
+#[pyfunction]
+fn checkpoint_read(py: Python<'_>, scene: &NativeScene, source: &[u8], defines: Vec<String>, mode: &str, path: PathBuf) -> PyResult<Option<Py<PyBytes>>> {
+    guarded(|| {
+        let checkpoint = checkpoint_of(scene, source, &defines, mode)?;
+        let state = py.allow_threads(|| -> anyhow::Result<Option<Vec<u8>>> {
+            Ok(match checkpoint.read(&path)? {
+                Some(state) => Some(state.to_bytes()),
+                // Finished: the state if the file keeps it.
+                None => snell::film::output::read_exr_metadata(&path)?.state,
+            })
+        });
+        match state {
+            Ok(s) => Ok(s.map(|b| PyBytes::new(py, &b).unbind())),
+            Err(e) => Err(PyValueError::new_err(format!("{e:#}").replace("--resume ", "checkpoint "))),
+        }
+    })
+}
+
+/// The live preview server of `snell render --preview`, for renders that
+/// the command line does not run (a distributed render): started on
+/// `host`:`port` (0: any free port); `publish` shows an image.
+#[pyclass(module = "snell._snell")]
+struct Preview {
+    server: Mutex<Option<snell::preview::Preview>>,
+    stop: Arc<AtomicBool>,
+    started: std::time::Instant,
+    url: String,
+    port: u16,
+}
+
+#[pymethods]
+impl Preview {
+    #[new]
+    #[pyo3(signature = (port=0, mode="rgb", width=1, height=1, host="127.0.0.1"))]
+    fn new(port: u16, mode: &str, width: u32, height: u32, host: &str) -> PyResult<Preview> {
+        guarded(|| {
+            let mode = parse_mode(mode)?;
+            let ip: std::net::IpAddr = host.parse().map_err(|_| PyValueError::new_err(format!("host={host:?} is not an IP address")))?;
+            let stop = Arc::new(AtomicBool::new(false));
+            let server = snell::preview::Preview::start((ip, port).into(), mode, width, height, stop.clone()).map_err(|e| PyOSError::new_err(format!("{e:#}")))?;
+            let (url, port) = (server.url(), server.addr().port());
+            Ok(Preview { server: Mutex::new(Some(server)), stop, started: std::time::Instant::now(), url, port })
+        })
+    }
+
+    #[getter]
+    fn url(&self) -> String {
+        self.url.clone()
+    }
+
+    #[getter]
+    fn port(&self) -> u16 {
+        self.port
+    }
+
+    /// Whether the page's Stop button was pressed.
+    #[getter]
+    fn stop_requested(&self) -> bool {
+        self.stop.load(Ordering::SeqCst)
+    }
+
+    /// Shows the image of film state `state` (bytes) or, with `state` None,
+    /// the H × W × C float32 `data` with channel `names`: pass `pass_` of
+    /// `passes`, `spp_done` of `spp_total` samples per pixel.
+    #[pyo3(signature = (state, data, height, width, names, pass_, passes, spp_done, spp_total))]
+    #[allow(clippy::too_many_arguments)]
+    fn publish(
+        &self,
+        py: Python<'_>,
+        state: Option<&[u8]>,
+        data: Option<&[u8]>,
+        height: u32,
+        width: u32,
+        names: Vec<String>,
+        pass_: u32,
+        passes: u32,
+        spp_done: u32,
+        spp_total: u32,
+    ) -> PyResult<()> {
+        guarded(|| {
+            let image = match (state, data) {
+                (Some(s), _) => {
+                    let s = film_state(s)?;
+                    py.allow_threads(|| s.develop())
+                }
+                (None, Some(d)) => {
+                    let values: Vec<f32> = d.chunks_exact(4).map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect();
+                    unflatten(width, height, &names, &values).map_err(|e| PyValueError::new_err(e.to_string()))?
+                }
+                (None, None) => return Err(PyValueError::new_err("publish needs a film state or an image")),
+            };
+            let elapsed = self.started.elapsed().as_secs_f64();
+            if let Some(server) = self.server.lock().unwrap_or_else(|p| p.into_inner()).as_ref() {
+                server.publish_image(&image, pass_, passes, spp_done, spp_total, elapsed);
+            }
+            Ok(())
+        })
+    }
+
+    /// Marks the render as over: stopped early (`interrupted`) or done.
+    #[pyo3(signature = (interrupted=false))]
+    fn finish(&self, interrupted: bool) {
+        if let Some(server) = self.server.lock().unwrap_or_else(|p| p.into_inner()).as_ref() {
+            server.finish_as(interrupted);
+        }
+    }
+
+    /// Stops the server (the page then shows the connection lost).
+    fn close(&self) {
+        self.server.lock().unwrap_or_else(|p| p.into_inner()).take();
+    }
+}
+
 #[pymodule]
 fn _snell(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("SceneError", m.py().get_type::<SceneError>())?;
@@ -666,5 +840,9 @@ fn _snell(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(state_merge, m)?)?;
     m.add_function(wrap_pyfunction!(state_develop, m)?)?;
     m.add_function(wrap_pyfunction!(state_info, m)?)?;
+    m.add_function(wrap_pyfunction!(state_merge_tiles, m)?)?;
+    m.add_function(wrap_pyfunction!(checkpoint_write, m)?)?;
+    m.add_function(wrap_pyfunction!(checkpoint_read, m)?)?;
+    m.add_class::<Preview>()?;
     Ok(())
 }

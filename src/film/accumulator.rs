@@ -319,7 +319,34 @@ impl Sink {
 #[derive(Clone, Debug, PartialEq)]
 pub struct FilmState {
     pub header: StateHeader,
+    /// For the state of one tile of the crop window (a distributed render
+    /// split over the image): where it lies; its sums cover `tile.window`.
+    tile: Option<TileRegion>,
     data: Vec<i128>,
+}
+
+/// Where the state of a tile lies: the pixels whose samples it holds, and
+/// the pixels whose sums it keeps — the tile grown by the reach of the
+/// reconstruction filter (samples near the tile's edge add to the pixels
+/// beyond it), clipped to the crop window. Both are (x, y, width, height)
+/// in crop-window coordinates. [`FilmState::merge_tiles`] adds the states
+/// of tiles that cover the crop window into the state of the whole window,
+/// bit for bit the state of one render.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TileRegion {
+    pub pixels: [u32; 4],
+    pub window: [u32; 4],
+}
+
+/// What [`FilmState::to_bytes`] writes as JSON: the header, and the tile
+/// of a tile's state (absent for a whole window: such states read and write
+/// as before tiles existed).
+#[derive(Serialize, Deserialize)]
+struct StoredHeader {
+    #[serde(flatten)]
+    header: StateHeader,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    tile: Option<TileRegion>,
 }
 
 /// What a [`FilmState`] holds, beside its sums.
@@ -360,7 +387,44 @@ impl FilmState {
         header.samples_taken = 0;
         header.invalid_samples = 0;
         let n = header.crop[2] as usize * header.crop[3] as usize * header.layout.stride();
-        FilmState { header, data: vec![0; n] }
+        FilmState { header, tile: None, data: vec![0; n] }
+    }
+
+    /// An empty state of the tile `pixels` (x, y, width, height in
+    /// crop-window coordinates) of a film with `header`, keeping the sums of
+    /// the pixels within `reach` pixels of it (clipped to the crop window).
+    /// An error if the tile is empty or leaves the crop window.
+    pub fn empty_tile(header: StateHeader, pixels: [u32; 4], reach: u32) -> anyhow::Result<FilmState> {
+        let [x, y, w, h] = pixels;
+        let [_, _, cw, ch] = header.crop;
+        if w == 0 || h == 0 || x as u64 + w as u64 > cw as u64 || y as u64 + h as u64 > ch as u64 {
+            anyhow::bail!("the tile {w}×{h} at ({x}, {y}) is not a part of the {cw}×{ch} film");
+        }
+        let (x0, y0) = (x.saturating_sub(reach), y.saturating_sub(reach));
+        let (x1, y1) = ((x + w).saturating_add(reach).min(cw), (y + h).saturating_add(reach).min(ch));
+        let window = [x0, y0, x1 - x0, y1 - y0];
+        let n = window[2] as usize * window[3] as usize * header.layout.stride();
+        let mut state = FilmState { header, tile: Some(TileRegion { pixels, window }), data: vec![0; n] };
+        let h = &mut state.header;
+        (h.complete, h.samples_taken, h.invalid_samples) = (true, 0, 0);
+        h.ranges.clear();
+        Ok(state)
+    }
+
+    /// The tile this state is of (None: the whole crop window).
+    pub fn tile(&self) -> Option<&TileRegion> {
+        self.tile.as_ref()
+    }
+
+    /// The pixels whose sums the state keeps: (x, y, width, height) in
+    /// crop-window coordinates.
+    fn extent(&self) -> [u32; 4] {
+        self.tile.map_or([0, 0, self.header.crop[2], self.header.crop[3]], |t| t.window)
+    }
+
+    /// The pixels whose samples the state holds.
+    pub fn pixels(&self) -> [u32; 4] {
+        self.tile.map_or([0, 0, self.header.crop[2], self.header.crop[3]], |t| t.pixels)
     }
 
     pub fn width(&self) -> u32 {
@@ -407,26 +471,29 @@ impl FilmState {
 
     /// Adds a sink's sums (the parts inside the crop window).
     pub fn add_sink(&mut self, sink: &Sink) {
-        let (w, h) = (self.width() as i32, self.height() as i32);
+        // The sink's pixels, shifted to the state's extent (a tile's window).
+        let [ex, ey, ew, eh] = self.extent();
+        let (w, h) = (ew as i32, eh as i32);
+        let (sx0, sy0) = (sink.x0 - ex as i32, sink.y0 - ey as i32);
         let stride = self.header.layout.stride();
         debug_assert_eq!(stride, sink.stride);
         for sy in 0..sink.height {
-            let y = sink.y0 + sy as i32;
+            let y = sy0 + sy as i32;
             if y < 0 || y >= h {
                 continue;
             }
-            let xs = sink.x0.max(0);
-            let xe = (sink.x0 + sink.width as i32).min(w);
+            let xs = sx0.max(0);
+            let xe = (sx0 + sink.width as i32).min(w);
             if xe <= xs {
                 continue;
             }
             let dst = &mut self.data[(y as usize * w as usize + xs as usize) * stride..(y as usize * w as usize + xe as usize) * stride];
-            let s0 = (sy * sink.width + (xs - sink.x0) as usize) * stride;
+            let s0 = (sy * sink.width + (xs - sx0) as usize) * stride;
             for (d, s) in dst.iter_mut().zip(&sink.data[s0..]) {
                 *d = d.saturating_add(*s);
             }
             if !sink.narrow.is_empty() {
-                let n0 = sy * sink.width + (xs - sink.x0) as usize;
+                let n0 = sy * sink.width + (xs - sx0) as usize;
                 for (d, n) in dst.chunks_exact_mut(stride).zip(&sink.narrow[n0..]) {
                     for k in 0..4 {
                         d[k] += n[k] as i128;
@@ -443,6 +510,10 @@ impl FilmState {
         let differs = |what: &str, x: String, y: String| anyhow::anyhow!("cannot merge film states: {what} differs ({x} vs {y})");
         if a.film_size != b.film_size || a.crop != b.crop {
             return Err(differs("the film or crop window", format!("{:?} {:?}", a.film_size, a.crop), format!("{:?} {:?}", b.film_size, b.crop)));
+        }
+        if self.tile != other.tile {
+            let name = |t: Option<TileRegion>| t.map_or("the whole window".to_string(), |t| format!("tile {:?}", t.pixels));
+            return Err(differs("the tile (merge tiles of a window with merge_tiles)", name(self.tile), name(other.tile)));
         }
         if a.seed != b.seed {
             return Err(differs("the seed", a.seed.to_string(), b.seed.to_string()));
@@ -479,13 +550,73 @@ impl FilmState {
         Ok(())
     }
 
+    /// Adds the states of `tiles` — tiles that together cover the crop
+    /// window once, each holding the same sample ranges (disjoint from this
+    /// state's) — to this state of the whole window: each tile's sums,
+    /// border included, at its place. Exact, as [`FilmState::merge`] is: the
+    /// result is bit for bit the state of rendering those ranges in one
+    /// piece. An error (and this state unchanged) if a tile is of another
+    /// render, the tiles overlap or leave a gap, or their ranges differ.
+    pub fn merge_tiles(&mut self, tiles: &[FilmState]) -> anyhow::Result<()> {
+        if self.tile.is_some() {
+            anyhow::bail!("cannot merge tiles into the state of a tile: merge them into the state of the whole window");
+        }
+        let Some(first) = tiles.first() else { anyhow::bail!("cannot merge tiles: none given") };
+        let [_, _, w, h] = self.header.crop;
+        let mut area = 0u64;
+        for (k, t) in tiles.iter().enumerate() {
+            let Some(region) = t.tile else { anyhow::bail!("cannot merge tiles: state {k} is of the whole window, not a tile") };
+            let mut whole = t.clone_header_only();
+            whole.tile = None;
+            self.check_compatible(&whole)?;
+            if t.header.ranges != first.header.ranges || !t.header.complete {
+                anyhow::bail!("cannot merge tiles: tile {:?} holds samples {:?}, tile {:?} {:?} (each tile must hold the same complete ranges)", region.pixels, t.header.ranges, first.pixels(), first.header.ranges);
+            }
+            let [x, y, tw, th] = region.pixels;
+            area += tw as u64 * th as u64;
+            for o in &tiles[..k] {
+                let [ox, oy, ow, oh] = o.pixels();
+                if x < ox + ow && ox < x + tw && y < oy + oh && oy < y + th {
+                    anyhow::bail!("cannot merge tiles: tiles {:?} and {:?} overlap", region.pixels, o.pixels());
+                }
+            }
+        }
+        if area != w as u64 * h as u64 {
+            anyhow::bail!("cannot merge tiles: they cover {area} of the {w}×{h} window's {} pixels", w as u64 * h as u64);
+        }
+        let stride = self.header.layout.stride();
+        for t in tiles {
+            let [x0, y0, tw, th] = t.extent();
+            for row in 0..th as usize {
+                let at = ((y0 as usize + row) * w as usize + x0 as usize) * stride;
+                let src = &t.data[row * tw as usize * stride..(row + 1) * tw as usize * stride];
+                for (d, s) in self.data[at..at + src.len()].iter_mut().zip(src) {
+                    *d = d.saturating_add(*s);
+                }
+            }
+            self.header.samples_taken += t.header.samples_taken;
+            self.header.invalid_samples += t.header.invalid_samples;
+        }
+        let h = &mut self.header;
+        h.ranges.extend(first.header.ranges.iter().cloned());
+        h.ranges = coalesce(std::mem::take(&mut h.ranges));
+        Ok(())
+    }
+
+    /// An empty copy of the state (its header and tile, no sums): what
+    /// [`FilmState::check_compatible`] looks at.
+    fn clone_header_only(&self) -> FilmState {
+        FilmState { header: self.header.clone(), tile: self.tile, data: vec![] }
+    }
+
     /// The image: Σ w·L / Σ w per pixel for camera samples (black where no
     /// weight landed or the quotient is not finite) plus Σ splats / (light
     /// paths traced), with the Stokes layers and scalar channels.
     pub fn develop(&self) -> Image {
         let h = &self.header;
         let layout = &h.layout;
-        let (w, ht) = (self.width(), self.height());
+        // A tile's state develops its window (the border pixels partial).
+        let [_, _, w, ht] = self.extent();
         let stride = layout.stride();
         let pixels_n = w as usize * ht as usize;
         let px = |i: usize| &self.data[i * stride..(i + 1) * stride];
@@ -540,7 +671,7 @@ impl FilmState {
     /// the sums as zigzag LEB128 integers, deflated.
     pub fn to_bytes(&self) -> Vec<u8> {
         use std::io::Write;
-        let header = serde_json::to_vec(&self.header).unwrap_or_default();
+        let header = serde_json::to_vec(&StoredHeader { header: self.header.clone(), tile: self.tile }).unwrap_or_default();
         let mut raw = Vec::with_capacity(self.data.len() * 8);
         for &v in &self.data {
             let mut z = ((v << 1) ^ (v >> 127)) as u128;
@@ -582,10 +713,20 @@ impl FilmState {
             anyhow::bail!("film state version {version} is not the {VERSION} this Snell reads");
         }
         let hlen = u32::from_le_bytes(take(12, 4)?.try_into()?) as usize;
-        let header: StateHeader = serde_json::from_slice(take(16, hlen)?).map_err(|e| bad(&format!("header: {e}")))?;
+        let StoredHeader { header, tile } = serde_json::from_slice(take(16, hlen)?).map_err(|e| bad(&format!("header: {e}")))?;
+        if let Some(t) = &tile {
+            let [_, _, cw, ch] = header.crop;
+            let inside = |r: [u32; 4]| r[0] as u64 + r[2] as u64 <= cw as u64 && r[1] as u64 + r[3] as u64 <= ch as u64;
+            let [px, py, pw, ph] = t.pixels;
+            let [wx, wy, ww, wh] = t.window;
+            if !inside(t.pixels) || !inside(t.window) || px < wx || py < wy || px + pw > wx + ww || py + ph > wy + wh {
+                return Err(bad("a tile outside its film"));
+            }
+        }
+        let [_, _, ew, eh] = tile.map_or(header.crop, |t| t.window);
         let plen = u64::from_le_bytes(take(16 + hlen, 8)?.try_into()?) as usize;
         let packed = take(24 + hlen, plen.min(bytes.len()))?;
-        let n = (header.crop[2] as u64 * header.crop[3] as u64).saturating_mul(header.layout.stride() as u64);
+        let n = (ew as u64 * eh as u64).saturating_mul(header.layout.stride() as u64);
         if n > crate::limits::max_film_bytes() / 16 {
             return Err(bad("film larger than the memory budget"));
         }
@@ -609,7 +750,7 @@ impl FilmState {
         if data.len() != n || shift != 0 {
             return Err(bad(&format!("{} sums where the header says {n}", data.len())));
         }
-        let mut state = FilmState { header, data };
+        let mut state = FilmState { header, tile, data };
         let ranges = std::mem::take(&mut state.header.ranges);
         if ranges.iter().any(|r| r.start >= r.end || r.end > state.header.sample_count) {
             return Err(bad("sample ranges outside the render"));

@@ -61,7 +61,13 @@ pub fn frame_layers(image: &Image) -> Vec<&'static str> {
 /// [`FRAME_MAGIC`]) then, layer after layer ([`frame_layers`]), the linear
 /// RGB of every pixel (row-major, top row first) as little-endian f32.
 pub fn encode_frame(report: &PassReport) -> Vec<u8> {
-    let image = report.image;
+    encode_image(report.image, report.pass, report.passes, report.spp_done)
+}
+
+/// [`encode_frame`] of `image`, pass `pass` of `passes`, `spp_done` samples
+/// per pixel (for images that no [`PassReport`] carries: a distributed
+/// render's).
+pub fn encode_image(image: &Image, pass: u32, passes: u32, spp_done: u32) -> Vec<u8> {
     let layers: Vec<&[crate::spectrum::Rgb]> = frame_layers(image)
         .iter()
         .map(|&n| if n == "S0" { image.pixels.as_slice() } else { image.layer(n).map_or(&[][..], |l| l.pixels.as_slice()) })
@@ -69,7 +75,7 @@ pub fn encode_frame(report: &PassReport) -> Vec<u8> {
     let n = image.pixels.len();
     let mut out = Vec::with_capacity(FRAME_HEADER + layers.len() * n * 12);
     out.extend_from_slice(FRAME_MAGIC);
-    for v in [1, image.width, image.height, layers.len() as u32, report.pass, report.passes, report.spp_done] {
+    for v in [1, image.width, image.height, layers.len() as u32, pass, passes, spp_done] {
         out.extend_from_slice(&v.to_le_bytes());
     }
     for pixels in layers {

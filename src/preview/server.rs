@@ -1,7 +1,7 @@
 //! The preview's HTTP server: shared state that the render thread publishes
 //! into, and the threads that answer the page's requests from it.
 
-use super::{encode_frame, frame_layers};
+use super::{encode_image, frame_layers};
 use crate::render::{PassReport, RenderStats};
 use axum::Router;
 use axum::body::{Body, Bytes};
@@ -137,20 +137,27 @@ impl Preview {
     /// Makes `report`'s pass the one the page shows. Encodes the image (a
     /// copy of its floats) and swaps it in; never waits on a client.
     pub fn publish(&self, report: &PassReport) {
-        let frame = Bytes::from(encode_frame(report));
-        let pixels = report.image.width as f64 * report.image.height as f64;
-        let rate = if report.elapsed_seconds > 0.0 { pixels * report.spp_done as f64 / report.elapsed_seconds } else { 0.0 };
+        self.publish_image(report.image, report.pass, report.passes, report.spp_done, report.spp_total, report.elapsed_seconds);
+    }
+
+    /// [`Preview::publish`] of an image that no [`PassReport`] carries (a
+    /// distributed render's): pass `pass` of `passes`, `spp_done` of
+    /// `spp_total` samples per pixel, `elapsed_seconds` since the render began.
+    pub fn publish_image(&self, image: &crate::film::Image, pass: u32, passes: u32, spp_done: u32, spp_total: u32, elapsed_seconds: f64) {
+        let frame = Bytes::from(encode_image(image, pass, passes, spp_done));
+        let pixels = image.width as f64 * image.height as f64;
+        let rate = if elapsed_seconds > 0.0 { pixels * spp_done as f64 / elapsed_seconds } else { 0.0 };
         let stopping = self.shared.stop.load(Ordering::Relaxed);
         let mut state = self.shared.lock();
         let p = &mut state.progress;
-        p.width = report.image.width;
-        p.height = report.image.height;
-        p.layers = frame_layers(report.image);
-        p.pass = report.pass;
-        p.passes = report.passes;
-        p.spp_done = report.spp_done;
-        p.spp_total = report.spp_total;
-        p.pass_seconds = report.elapsed_seconds;
+        p.width = image.width;
+        p.height = image.height;
+        p.layers = frame_layers(image);
+        p.pass = pass;
+        p.passes = passes;
+        p.spp_done = spp_done;
+        p.spp_total = spp_total;
+        p.pass_seconds = elapsed_seconds;
         p.samples_per_second = rate;
         p.state = if stopping { "stopping" } else { "rendering" };
         state.frame = Some(frame);
@@ -159,7 +166,12 @@ impl Preview {
 
     /// Marks the render as over (its outputs written).
     pub fn finish(&self, stats: &RenderStats) {
-        self.shared.lock().progress.state = if stats.interrupted { "stopped" } else { "done" };
+        self.finish_as(stats.interrupted);
+    }
+
+    /// Marks the render as over: stopped early (`interrupted`) or done.
+    pub fn finish_as(&self, interrupted: bool) {
+        self.shared.lock().progress.state = if interrupted { "stopped" } else { "done" };
     }
 }
 

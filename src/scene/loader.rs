@@ -447,6 +447,7 @@ impl Loader {
             lights,
             shapes: self.shapes,
             files,
+            folder: root.loc.file.path.parent().map(Path::to_path_buf).unwrap_or_default(),
         })
     }
 

@@ -61,6 +61,9 @@ pub struct Scene {
     /// included XML files, then meshes and images in the order read (what
     /// a checkpoint's digest covers besides the scene text).
     pub files: Vec<std::path::PathBuf>,
+    /// The folder of the top-level XML file: checkpoints name [`Scene::files`]
+    /// relative to it, so that a scene folder can move.
+    pub folder: std::path::PathBuf,
 }
 
 /// Most surfaces a ray passes through before it gives up (a guard against
