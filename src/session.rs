@@ -68,6 +68,9 @@ pub fn prepare(scene: &Scene, mode: Mode, what: &str) -> anyhow::Result<()> {
             "{what}: the polarized modes need a camera-path integrator (path or direct); particle tracing (ptracer) does not carry polarization"
         );
     }
+    if mode.polarized() && matches!(scene.integrator, Integrator::Sppm(_)) {
+        anyhow::bail!("{what}: the polarized modes need a camera-path integrator (path or direct); photon mapping (sppm) does not carry polarization");
+    }
     if mode.polarized() {
         if let Some(b) = scene.bsdfs.iter().find(|b| !b.has_mueller_model()) {
             anyhow::bail!(

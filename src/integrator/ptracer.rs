@@ -147,7 +147,7 @@ impl ParticleTracer {
 /// of a surface whose shading normal differs from its geometric one is
 /// f · |ω_in·n_s| |ω_out·n_g| / (|ω_in·n_g| |ω_out·n_s|) (1 on flat faces).
 #[inline]
-fn shading_correction(si: &SurfaceInteraction, wi_local: Vec3, wo_local: Vec3) -> f32 {
+pub(crate) fn shading_correction(si: &SurfaceInteraction, wi_local: Vec3, wo_local: Vec3) -> f32 {
     let ng = si.to_local(si.n);
     let (in_ng, out_ng) = (wi_local.dot(ng), wo_local.dot(ng));
     let (in_ns, out_ns) = (wi_local.z, wo_local.z);
