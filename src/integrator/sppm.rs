@@ -14,8 +14,8 @@
 //!    as pbrt-v4's SPPM does). On a BSDF with both delta and smooth lobes
 //!    (smooth plastic) the path stops there or follows the delta lobes with
 //!    probability ½ each (weighted by 2);
-//! 2. traces `photon_count` light paths from the emitters
-//!    ([`crate::scene::Scene::sample_emission`], importance transport,
+//! 2. traces `photon_count` light paths from the emitters (chosen as
+//!    [`crate::scene::Scene::sample_emission`] chooses them; importance transport,
 //!    Veach's shading-normal correction as `ptracer`); at every non-delta
 //!    surface from their second segment on (the first is direct light,
 //!    already counted) each photon adds β_cam · f · Φ to the statistics of
@@ -52,9 +52,10 @@
 //! - Modes `rgb` and `spectral` (all camera and light paths of one
 //!   iteration share its wavelengths, as pbrt-v4 does, so a photon and a
 //!   visible point see the same ones); the polarized modes are refused.
-//! - Emitters: `area`, `point`, `spot`, `projector` (photons start at a
-//!   finite place); the loader refuses `constant`, `envmap` and
-//!   `directional` with `sppm`.
+//! - Photons start on every kind of emitter: finite ones sample their own
+//!   rays; emitters at infinity (`constant`, `envmap`, `directional`) send
+//!   photons from a disk of the scene's bounding sphere (most of which land
+//!   where no camera looks in a large scene: such scenes need more photons).
 //! - The pixel filter is a box over the pixel (one visible point per pixel
 //!   and iteration); the film's `rfilter` is not used.
 //! - The per-pixel state (R, N, τ) is not a sum of samples: a render cannot
@@ -70,6 +71,8 @@
 //!   stored, so memory does not grow with `photon_count`.
 
 use crate::bsdf::{BsdfContext, Lobe};
+use crate::emitter::Emitter;
+use crate::math::Frame;
 use crate::film::{FilmState, Filter, Image, Sink};
 use crate::geometry::{Ray, SurfaceInteraction};
 use crate::integrator::ptracer::shading_correction;
@@ -235,8 +238,7 @@ impl Sppm {
         if self.initial_radius > 0.0 {
             return self.initial_radius;
         }
-        let (lo, hi) = scene.accel.bounds(&scene.shapes);
-        let sphere = 0.5 * (hi - lo).length();
+        let sphere = bounding_sphere(scene).1;
         let r = 5.0 * sphere / scene.film.width.max(scene.film.height).max(1) as f32;
         if r.is_finite() && r > 0.0 { r } else { 1e-3 }
     }
@@ -361,6 +363,7 @@ impl Sppm {
         index: u32,
         iteration: u32,
         wl: S::Wavelengths,
+        sphere: (Vec3, f32),
         grid: &Grid,
         points: &[Option<VisiblePoint<S>>],
         stats: &[PixelStats],
@@ -369,20 +372,13 @@ impl Sppm {
         let mut sampler = Sampler::start(spec, index, iteration, 0);
         let mut wl = wl;
         let mut dispersed = false;
-        let Some(em) = scene.sample_emission::<S>(
-            sampler.next_1d(),
-            sampler.next_2d(),
-            sampler.next_2d(),
-            &wl,
-        ) else {
+        let Some((mut ray, mut beta)) = emit::<S>(scene, sphere, &mut sampler, &wl) else {
             return;
         };
-        let mut beta = em.weight;
         let beta_start = beta.max_component();
         if !(beta_start > 0.0) {
             return;
         }
-        let mut ray = em.ray;
         let mut segments = 0u32;
         let mut ctx = BsdfContext::IMPORTANCE;
         loop {
@@ -497,6 +493,37 @@ impl Sppm {
     }
 }
 
+/// The scene's bounding sphere (centre, radius).
+fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
+    let (lo, hi) = scene.accel.bounds(&scene.shapes);
+    (0.5 * (lo + hi), 0.5 * (hi - lo).length())
+}
+
+/// Starts a photon: an emitter chosen as light paths choose them
+/// ([`crate::emitter::LightSelector::select_emission`]) and a ray leaving
+/// it, with its throughput (emitted radiance × cosine over the densities).
+/// Finite emitters sample their own rays ([`Emitter::sample_ray`]); an
+/// emitter at infinity (`constant`, `envmap`, `directional`) sends its
+/// photon along a direction it samples (by its own density), from a point
+/// uniform on the disk of the scene's bounding sphere facing that direction
+/// (area π r²), as pbrt-v4 does.
+fn emit<S: Spectrum>(scene: &Scene, sphere: (Vec3, f32), sampler: &mut Sampler, wl: &S::Wavelengths) -> Option<(Ray, S)> {
+    let (u_pick, u_pos, u_dir) = (sampler.next_1d(), sampler.next_2d(), sampler.next_2d());
+    let (index, pmf, _) = scene.lights.select_emission(u_pick)?;
+    let emitter = &scene.emitters[index];
+    if matches!(emitter, Emitter::Constant(_) | Emitter::EnvMap(_) | Emitter::Directional(_)) {
+        let (center, r) = (sphere.0, sphere.1 * 1.01 + 1e-4);
+        let es = emitter.sample_direction::<S>(scene, center, u_dir, wl)?;
+        let w = -es.d;
+        let frame = Frame::from_normal(w);
+        let (rho, phi) = (u_pos.x.sqrt(), std::f32::consts::TAU * u_pos.y);
+        let o = center + r * (frame.to_world(Vec3::new(rho * phi.cos(), rho * phi.sin(), 0.0)) - w);
+        return Some((Ray::new(o, w), es.weight * (std::f32::consts::PI * r * r / pmf)));
+    }
+    let em = emitter.sample_ray::<S>(scene, u_pos, u_dir, wl)?;
+    Some((em.ray, em.weight / pmf))
+}
+
 /// One iteration's photon sums per pixel.
 struct Sums {
     phi: Vec<[AtomicI64; 3]>,
@@ -522,6 +549,7 @@ pub fn render<S: Spectrum>(
     let pixels = w as usize * h as usize;
     let bar = crate::render::progress_bar(options, pixels as u64 * iterations as u64);
     let r0 = sppm.radius(scene) as f64;
+    let sphere = bounding_sphere(scene);
     let mut stats = vec![
         PixelStats {
             radius: r0,
@@ -591,6 +619,7 @@ pub fn render<S: Spectrum>(
                                 p,
                                 iteration,
                                 wl,
+                                sphere,
                                 &grid,
                                 &points,
                                 &stats,

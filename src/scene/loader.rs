@@ -358,17 +358,7 @@ impl Loader {
         }
         let integrator =
             integrator.unwrap_or(Integrator::Path(PathTracer { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false }));
-        if let (Integrator::Sppm(sppm), Some(loc)) = (&integrator, &integrator_loc) {
-            // Photons start at a finite place, as ptracer's light paths.
-            if let Some(e) = self.emitters.iter().find(|e| matches!(e, Emitter::Constant(_) | Emitter::Directional(_) | Emitter::EnvMap(_))) {
-                let kind = match e {
-                    Emitter::Constant(_) => "constant",
-                    Emitter::EnvMap(_) => "envmap",
-                    _ => "directional",
-                };
-                return Err(SceneError::at(loc, format!("sppm cannot trace photons from a \"{kind}\" emitter; use the path integrator"))
-                    .with_choices(&["area", "point", "spot", "projector"]));
-            }
+        if let Integrator::Sppm(sppm) = &integrator {
             if sppm.max_passes > 0 && options.spp.is_none() {
                 sampler.set_sample_count(sppm.max_passes);
             }
