@@ -41,15 +41,16 @@ def variant(args, integrator):
         text, n = re.subn(pattern, "", text, flags=re.S)
         if n == 0:
             sys.exit(f"--drop {pattern!r} matched nothing")
-    path = os.path.join(os.path.dirname(args.scene), ".sppm-eff-" + os.path.basename(args.scene))
+    path = os.path.join(os.path.dirname(args.scene), f".sppm-eff-{args.tag}-" + os.path.basename(args.scene))
     with open(path, "w") as f:
         f.write(text)
     return path
 
 
 def render(args, scene, spp, seed, out):
+    stats = f"/tmp/sppm-eff-{args.tag}-stats.json"
     cmd = [args.snell, "render", scene, "-o", out, "--spp", str(spp), "--seed", str(seed),
-           "--threads", str(args.threads), "--stats", "/tmp/sppm-eff-stats.json", "--quiet", "-D", f"res={args.res}"]
+           "--threads", str(args.threads), "--stats", stats, "--quiet", "-D", f"res={args.res}"]
     for kv in args.defines:
         cmd += ["-D", kv]
     before = os.times()
@@ -58,7 +59,7 @@ def render(args, scene, spp, seed, out):
     if r.returncode != 0:
         print(r.stdout)
         sys.exit(f"snell failed with exit code {r.returncode}")
-    with open("/tmp/sppm-eff-stats.json") as f:
+    with open(stats) as f:
         wall = float(json.load(f)["render_seconds"])
     cpu = (after.children_user + after.children_system) - (before.children_user + before.children_system)
     return wall, cpu / args.threads, read_pfm(out)[2]
@@ -67,7 +68,7 @@ def render(args, scene, spp, seed, out):
 def measure(args, name, scene, spp, ref):
     errs, walls, cpus = [], [], []
     for seed in range(1, args.runs + 1):
-        wall, cpu, img = render(args, scene, spp, seed, f"/tmp/sppm-eff-{name}-{seed}.pfm")
+        wall, cpu, img = render(args, scene, spp, seed, f"/tmp/sppm-eff-{args.tag}-{name}-{seed}.pfm")
         errs.append(rel_mse(img, ref))
         walls.append(wall)
         cpus.append(cpu)
@@ -89,6 +90,7 @@ def main():
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--drop", action="append", default=[])
     ap.add_argument("-D", dest="defines", action="append", default=[])
+    ap.add_argument("--tag", default="run", help="names the temporary files (runs in parallel need different tags)")
     ap.add_argument("--snell", default=os.path.join(ROOT, "target", "release", "snell"))
     args = ap.parse_args()
     path_xml = f'<integrator type="path"><integer name="max_depth" value="{args.max_depth}"/></integrator>'
@@ -98,10 +100,10 @@ def main():
     try:
         sppm_scene = variant(args, sppm_xml)
         print(f"{args.scene} at {args.res} px, {args.threads} threads, drop {args.drop}")
-        wall, cpu, ref = render(args, path_scene, args.ref_spp, 1000, "/tmp/sppm-eff-ref.pfm")
+        wall, cpu, ref = render(args, path_scene, args.ref_spp, 1000, f"/tmp/sppm-eff-{args.tag}-ref.pfm")
         print(f"  reference: path {args.ref_spp} spp, cpu/threads {cpu:.1f} s")
         eff_sppm, t_sppm = measure(args, "sppm", sppm_scene, args.iterations, ref)
-        _, t16, _ = render(args, path_scene, 16, 999, "/tmp/sppm-eff-cal.pfm")
+        _, t16, _ = render(args, path_scene, 16, 999, f"/tmp/sppm-eff-{args.tag}-cal.pfm")
         spp = max(1, round(16 * t_sppm / max(t16, 1e-3)))
         eff_path, _ = measure(args, "path", path_scene, spp, ref)
         print(f"  sppm / path efficiency: {eff_sppm / eff_path:.2f}x")
