@@ -50,7 +50,7 @@ impl Default for RenderOptions {
 }
 
 impl RenderOptions {
-    fn stopped(&self) -> bool {
+    pub(crate) fn stopped(&self) -> bool {
         self.stop.as_ref().is_some_and(|s| s.load(Ordering::Relaxed))
     }
 }
@@ -70,6 +70,9 @@ fn estimate(scene: &Scene, polarized: bool, passes: bool) -> u64 {
     let border = (scene.film.filter.radius() + 0.5).ceil() as u64;
     let threads = rayon::current_num_threads() as u64;
     let copies = if passes { 2 } else { 1 };
+    if let Integrator::Sppm(_) = &scene.integrator {
+        return pixels * (crate::integrator::sppm::MEMORY_PER_PIXEL + 2 * 4 * 16 + 2 * 12);
+    }
     if let Integrator::Particle(_) = &scene.integrator {
         return copies * pixels * 3 * 16 + pixels * (12 + 12) + threads * (w + 2 * border) * (h + 2 * border) * 3 * 16;
     }
@@ -106,7 +109,7 @@ fn check_memory(scene: &Scene, polarized: bool, passes: bool) -> anyhow::Result<
 
 /// A pool of `threads` workers, with an error that names the thread count
 /// when the system refuses them.
-fn thread_pool(threads: usize) -> anyhow::Result<rayon::ThreadPool> {
+pub(crate) fn thread_pool(threads: usize) -> anyhow::Result<rayon::ThreadPool> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -159,11 +162,11 @@ impl RenderStats {
     }
 }
 
-fn thread_count(options: &RenderOptions) -> usize {
+pub(crate) fn thread_count(options: &RenderOptions) -> usize {
     if options.threads == 0 { std::thread::available_parallelism().map_or(1, |n| n.get()) } else { options.threads }
 }
 
-fn progress_bar(options: &RenderOptions, len: u64) -> ProgressBar {
+pub(crate) fn progress_bar(options: &RenderOptions, len: u64) -> ProgressBar {
     if options.progress {
         let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
         bar.set_style(
@@ -243,6 +246,13 @@ pub fn render_progressive<S: Spectrum>(
     resume: Option<FilmState>,
     on_pass: &mut dyn FnMut(&PassReport),
 ) -> anyhow::Result<(Image, RenderStats, FilmState)> {
+    if let Integrator::Sppm(sppm) = &scene.integrator {
+        if resume.is_some() {
+            anyhow::bail!("cannot resume: sppm's progressive state (per-pixel radii, photon counts and flux) is not saved in a film state; render from the start");
+        }
+        check_memory(scene, S::POLARIZED, true)?;
+        return crate::integrator::sppm::render::<S>(scene, sppm, options, on_pass);
+    }
     let spp = scene.sampler.sample_count;
     let threads = thread_count(options);
     // Before anything is allocated.
@@ -350,6 +360,9 @@ pub fn render_samples<S: Spectrum>(scene: &Scene, options: &RenderOptions, sampl
             scene.sampler.sample_count
         );
     }
+    if let Integrator::Sppm(_) = &scene.integrator {
+        anyhow::bail!("sppm's progressive state cannot be split into sample ranges or merged: render it in one piece");
+    }
     check_memory(scene, S::POLARIZED, false)?;
     let pixels = scene.film.crop[2] as u64 * scene.film.crop[3] as u64;
     let bar = progress_bar(options, pixels * samples.len() as u64);
@@ -416,7 +429,7 @@ pub fn scene_fingerprint<S: Spectrum>(scene: &Scene) -> u64 {
 }
 
 /// The header of an empty state of `scene` rendered in mode `S`.
-fn state_header<S: Spectrum>(scene: &Scene) -> StateHeader {
+pub(crate) fn state_header<S: Spectrum>(scene: &Scene) -> StateHeader {
     let particle = matches!(scene.integrator, Integrator::Particle(_));
     let alpha = scene.film.pixel_format.has_alpha();
     let extra = if particle { vec![] } else { alpha.then(|| "A".to_string()).into_iter().chain(scene.integrator.channel_names()).collect() };

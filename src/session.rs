@@ -71,10 +71,13 @@ pub fn prepare(scene: &Scene, mode: Mode, what: &str) -> anyhow::Result<()> {
     if mode.polarized() && matches!(scene.integrator, Integrator::Bdpt(_)) {
         anyhow::bail!("{what}: the polarized modes need a camera-path integrator (path or direct); bdpt renders in the rgb and spectral modes only");
     }
+    if mode.polarized() && matches!(scene.integrator, Integrator::Sppm(_)) {
+        anyhow::bail!("{what}: the polarized modes need a camera-path integrator (path or direct); photon mapping (sppm) does not carry polarization");
+    }
     if mode.polarized() {
         if let Some(b) = scene.bsdfs.iter().find(|b| !b.has_mueller_model()) {
             anyhow::bail!(
-                "{what}: the polarized modes support diffuse, dielectric, thindielectric, conductor, plastic, polarizer, retarder, roughconductor, roughdielectric, roughplastic and birefringent BSDFs (and twosided of them); this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
+                "{what}: the polarized modes support diffuse, dielectric, thindielectric, conductor, plastic, polarizer, retarder, roughconductor, roughdielectric, roughplastic, pplastic and birefringent BSDFs (and twosided of them); this scene has a \"{}\" BSDF (render it with --mode rgb or spectral)",
                 b.plugin()
             );
         }

@@ -8,12 +8,14 @@ pub mod bdpt;
 pub mod direct;
 pub mod path;
 pub mod ptracer;
+pub mod sppm;
 
 pub use aov::{Aov, AovKind, Moment};
 pub use bdpt::{Bdpt, BdptScratch};
 pub use direct::Direct;
 pub use path::PathTracer;
 pub use ptracer::ParticleTracer;
+pub use sppm::Sppm;
 
 use crate::geometry::Ray;
 use crate::sampler::Sampler;
@@ -35,6 +37,9 @@ pub enum Integrator {
     /// rendered by its own driver ([`crate::render`]), never through
     /// [`Integrator::li`].
     Bdpt(Bdpt),
+    /// Stochastic progressive photon mapping; rendered by its own driver
+    /// ([`sppm::render`]), never through [`Integrator::li`].
+    Sppm(Sppm),
 }
 
 impl Integrator {
@@ -45,7 +50,7 @@ impl Integrator {
         match self {
             Integrator::Direct(d) => d.li(scene, ray, sampler, wl),
             Integrator::Path(p) => p.li(scene, ray, sampler, wl),
-            Integrator::Particle(_) | Integrator::Bdpt(_) => S::zero(),
+            Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) => S::zero(),
             Integrator::Aov(a) => a.integrators.first().map_or(S::zero(), |(_, i)| i.li(scene, ray, sampler, wl)),
             Integrator::Moment(m) => m.integrators.first().map_or(S::zero(), |(_, i)| i.li(scene, ray, sampler, wl)),
         }
@@ -63,7 +68,7 @@ impl Integrator {
 
     pub fn channel_count(&self) -> usize {
         match self {
-            Integrator::Direct(_) | Integrator::Path(_) | Integrator::Particle(_) | Integrator::Bdpt(_) => 0,
+            Integrator::Direct(_) | Integrator::Path(_) | Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) => 0,
             _ => self.channel_names().len(),
         }
     }
@@ -87,7 +92,7 @@ impl Integrator {
                 let alpha = if scene.environment.is_some() && !p.hide_emitters { 1.0 } else { hits(p.hide_emitters) };
                 (p.li(scene, ray, sampler, wl), alpha)
             }
-            Integrator::Particle(_) | Integrator::Bdpt(_) => (S::zero(), 0.0),
+            Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) => (S::zero(), 0.0),
             Integrator::Aov(a) => a.sample(scene, ray, sampler, wl, channels),
             Integrator::Moment(m) => m.sample(scene, ray, sampler, wl, channels),
         }

@@ -19,7 +19,7 @@ use crate::geometry::serialized;
 use crate::geometry::sphere::Sphere;
 use crate::geometry::{Shape, ShapeGeometry};
 use crate::emitter::{LightSampling, LightSelector};
-use crate::integrator::{Aov, AovKind, Bdpt, Direct, Integrator, Moment, ParticleTracer, PathTracer};
+use crate::integrator::{Aov, AovKind, Bdpt, Direct, Integrator, Moment, ParticleTracer, PathTracer, Sppm};
 use crate::math::Transform;
 use crate::sampler::SamplerSpec;
 use crate::sensor::perspective::{focal_length_fov, horizontal_fov, parse_focal_length};
@@ -44,7 +44,7 @@ pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
 pub const SAMPLERS: [&str; 7] = crate::sampler::NAMES;
-pub const INTEGRATORS: [&str; 7] = ["direct", "path", "ptracer", "bdpt", "stokes", "aov", "moment"];
+pub const INTEGRATORS: [&str; 8] = ["direct", "path", "ptracer", "bdpt", "sppm", "stokes", "aov", "moment"];
 
 /// The most samples per pixel, from the scene or from `--spp` (Mitsuba's
 /// sample counts are 32-bit; 2^24 keeps per-pixel sums exact in f32 weights).
@@ -386,6 +386,11 @@ impl Loader {
         }
         let integrator =
             integrator.unwrap_or(Integrator::Path(PathTracer { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false }));
+        if let Integrator::Sppm(sppm) = &integrator {
+            if sppm.max_passes > 0 && options.spp.is_none() {
+                sampler.set_sample_count(sppm.max_passes);
+            }
+        }
         if let (Integrator::Particle(_), Some(loc)) = (&integrator, &integrator_loc) {
             // A light path must start somewhere finite and end in a pinhole.
             if !matches!(camera, Camera::Perspective(_)) {
@@ -1209,6 +1214,24 @@ impl Loader {
                     mis: props.bool("mis", true)?,
                 })
             }
+            "sppm" => {
+                let max_depth = props.int_checked("max_depth", -1, |v| v == -1 || v >= 1, "-1 (unlimited) or a positive integer")?;
+                let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
+                let photon_count = props.int_checked("photon_count", 250_000, |v| (1..=1 << 24).contains(&v), "between 1 and 16777216 (2^24)")?;
+                let initial_radius = props.float_checked("initial_radius", 0.0, |r| r >= 0.0 && r.is_finite(), "0 (automatic) or a positive length")?;
+                let alpha = props.float_checked("alpha", 2.0 / 3.0, |a| a > 0.0 && a < 1.0, "between 0 and 1 (exclusive)")?;
+                let granularity = props.int_checked("granularity", 0, |v| (0..=1 << 24).contains(&v), "0 (automatic) or a positive integer up to 2^24")?;
+                let passes = props.int_checked("max_passes", -1, |v| v == -1 || (1..=MAX_SPP as i64).contains(&v), "-1 (the sampler's sample count) or between 1 and 2^24")?;
+                Integrator::Sppm(Sppm {
+                    photon_count: photon_count as u32,
+                    initial_radius,
+                    alpha,
+                    max_depth: self.depth_limit(&props, "max_depth", max_depth),
+                    rr_depth: self.depth_limit(&props, "rr_depth", rr_depth),
+                    granularity: granularity as u32,
+                    max_passes: passes.max(0) as u32,
+                })
+            }
             _ => return Err(unknown_plugin(node, &INTEGRATORS)),
         };
         props.finish()?;
@@ -1240,7 +1263,7 @@ impl Loader {
         let mut unnamed = 0;
         for child in props.children_of(Kind::Integrator) {
             let n = self.resolve(child)?;
-            if matches!(n.plugin.as_str(), "ptracer" | "bdpt" | "stokes") {
+            if matches!(n.plugin.as_str(), "ptracer" | "bdpt" | "stokes" | "sppm") {
                 return Err(SceneError::at(&n.loc, format!("the {} integrator nests camera-path integrators; \"{}\" cannot be nested", node.plugin, n.plugin))
                     .with_choices(&["direct", "path", "aov", "moment"]));
             }

@@ -1,0 +1,432 @@
+//! `sppm`: stochastic progressive photon mapping. Its error against a
+//! reference falls as the iterations grow (consistency), it renders the
+//! specular–diffuse–specular light a path tracer cannot find (a floor under
+//! a flat water surface lit by a point light, seen through the surface,
+//! against a closed form), it is deterministic, and bad parameters are
+//! located errors.
+
+mod common;
+use common::*;
+use snell::film::Image;
+use snell::film::output::read_exr;
+use snell::spectrum::{Rgb, Sampled, Spectrum};
+use snell::{LoadOptions, Mode, RenderOptions};
+
+/// The text of the scene file `path` with its (first) `<integrator>` block
+/// replaced by `integrator`.
+fn with_integrator(path: &str, integrator: &str) -> String {
+    let text = std::fs::read_to_string(repo(path)).expect("scene file");
+    let start = text.find("<integrator").expect("an integrator block");
+    let end = text.rfind("</integrator>").expect("an integrator block") + "</integrator>".len();
+    format!("{}{}{}", &text[..start], integrator, &text[end..])
+}
+
+fn load(path: &str, text: &str, params: &[(&str, &str)], spp: u32) -> snell::Scene {
+    let options = LoadOptions {
+        params: common::params(params),
+        spp: Some(spp),
+        seed: None,
+    };
+    snell::load_str(&repo(path), text, &options).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn render(scene: &snell::Scene, threads: usize) -> Image {
+    snell::render::<Rgb>(
+        scene,
+        &RenderOptions {
+            threads,
+            ..RenderOptions::default()
+        },
+    )
+    .expect("render")
+    .0
+}
+
+/// Means of `block` × `block` blocks, per channel.
+fn blocks(img: &Image, block: u32) -> Vec<[f64; 3]> {
+    let mut out = vec![];
+    for by in 0..img.height / block {
+        for bx in 0..img.width / block {
+            let mut m = [0.0f64; 3];
+            for y in by * block..(by + 1) * block {
+                for x in bx * block..(bx + 1) * block {
+                    let p = img.pixels[(y * img.width + x) as usize];
+                    for c in 0..3 {
+                        m[c] += p[c] as f64 / (block * block) as f64;
+                    }
+                }
+            }
+            out.push(m);
+        }
+    }
+    out
+}
+
+/// Relative mean squared error of the block means of `img` against those
+/// of `reference` (blocks: the film's reconstruction filter does not
+/// matter; sppm uses a box, the reference a Gaussian).
+/// Blocks within 3 pixels of a directly visible emitter (a reference
+/// pixel above 1) are left out: there the filters' difference is all one
+/// sees.
+fn block_rel_mse(img: &Image, reference: &Image, block: u32) -> f64 {
+    let (a, r) = (blocks(img, block), blocks(reference, block));
+    let bw = reference.width / block;
+    let near_light = |b: usize| {
+        let (bx, by) = ((b as u32 % bw) * block, (b as u32 / bw) * block);
+        let (x0, y0) = (bx.saturating_sub(3), by.saturating_sub(3));
+        let (x1, y1) = (
+            (bx + block + 3).min(reference.width),
+            (by + block + 3).min(reference.height),
+        );
+        (y0..y1).any(|y| {
+            (x0..x1)
+                .any(|x| reference.pixels[(y * reference.width + x) as usize].max_component() > 1.0)
+        })
+    };
+    let (mut sum, mut n) = (0.0, 0);
+    for (b, (a, r)) in a.iter().zip(&r).enumerate() {
+        if near_light(b) {
+            continue;
+        }
+        for c in 0..3 {
+            sum += (a[c] - r[c]).powi(2) / (r[c].powi(2) + 1e-4);
+            n += 1;
+        }
+    }
+    sum / n as f64
+}
+
+const SPPM: &str = r#"<integrator type="sppm">
+        <integer name="max_depth" value="8"/>
+        <integer name="photon_count" value="$photons"/>
+    </integrator>"#;
+
+/// Consistency on the Cornell box (diffuse): against Mitsuba's reference
+/// (65 536 spp), the error of 8 × 8-pixel block means falls with the
+/// iterations at the rate SPPM promises (relMSE ∝ k^−(1−α)·… ≈ k^−2/3 at
+/// best), and the bias of the image mean is small at the final count.
+#[test]
+fn cornell_box_error_falls_with_iterations() {
+    let reference = read_exr(&repo("tests/references/cornell-box.exr")).expect("reference");
+    let text = with_integrator("scenes/cornell-box.xml", SPPM);
+    let mut errors = vec![];
+    for k in [4u32, 16, 64] {
+        let scene = load(
+            "scenes/cornell-box.xml",
+            &text,
+            &[("res", "128"), ("photons", "20000")],
+            k,
+        );
+        let t = std::time::Instant::now();
+        let img = render(&scene, 0);
+        let e = block_rel_mse(&img, &reference, 8);
+        let (m, r) = (mean(&img), mean(&reference));
+        eprintln!(
+            "cornell sppm k = {k:3}: block relMSE {e:.3e}, mean ratio {:.4} {:.4} {:.4}, {:.2} s",
+            m[0] / r[0],
+            m[1] / r[1],
+            m[2] / r[2],
+            t.elapsed().as_secs_f64()
+        );
+        errors.push((k, e, [0, 1, 2].map(|c| m[c] / r[c])));
+    }
+    for w in errors.windows(2) {
+        assert!(
+            w[1].1 < w[0].1,
+            "error did not fall from k = {} to {}: {:.3e} → {:.3e}",
+            w[0].0,
+            w[1].0,
+            w[0].1,
+            w[1].1
+        );
+    }
+    let rate = (errors[0].1 / errors[2].1).ln() / (errors[2].0 as f64 / errors[0].0 as f64).ln();
+    eprintln!("cornell sppm: relMSE ∝ k^-{rate:.2}");
+    let (_, _, ratio) = errors[2];
+    for c in 0..3 {
+        assert!(
+            (ratio[c] - 1.0).abs() < 0.03,
+            "channel {c}: mean ratio {:.4} at 64 iterations",
+            ratio[c]
+        );
+    }
+}
+
+/// A point light of intensity I at height h above a flat water surface
+/// (η = 1.333) over a white diffuse floor (ρ) at depth d, seen straight from
+/// above through the surface: light → surface → floor → surface → camera, a
+/// specular–diffuse–specular path that no camera path can complete (the
+/// light is a point, the surface a delta BSDF). `max_depth` 4 keeps exactly
+/// this path. Under the light, at normal incidence,
+///
+/// E = I · T₀ / (h + d/η)²   (the refracted cone of half-angle θ/η spreads over
+/// a disk of radius θ (h + d/η)), L_floor = ρ E / π, and the camera sees
+/// L = T₀ L_floor / η² (radiance leaving water for air), with Fresnel's
+/// T₀ = 1 − ((η − 1)/(η + 1))².
+fn pool_scene(integrator: &str) -> String {
+    format!(
+        r#"<scene version="3.0.0">
+    {integrator}
+    <sensor type="perspective">
+        <float name="fov" value="4"/>
+        <transform name="to_world"><lookat origin="0, 2, 0" target="0, 0, 0" up="0, 0, -1"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="16"/></sampler>
+        <film type="hdrfilm">
+            <integer name="width" value="16"/>
+            <integer name="height" value="16"/>
+            <rfilter type="box"/>
+        </film>
+    </sensor>
+    <emitter type="point">
+        <point name="position" x="0" y="1" z="0"/>
+        <rgb name="intensity" value="10, 10, 10"/>
+    </emitter>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="10"/><rotate x="1" angle="-90"/></transform>
+        <bsdf type="dielectric"><float name="int_ior" value="1.333"/><float name="ext_ior" value="1"/></bsdf>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="10"/><rotate x="1" angle="-90"/><translate y="-0.5"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.8, 0.8, 0.8"/></bsdf>
+    </shape>
+</scene>
+"#
+    )
+}
+
+fn pool_expected() -> f64 {
+    let (eta, h, d, intensity, rho) = (1.333f64, 1.0, 0.5, 10.0, 0.8);
+    let t0 = 1.0 - ((eta - 1.0) / (eta + 1.0)).powi(2);
+    let e = intensity * t0 / (h + d / eta).powi(2);
+    t0 * rho * e / std::f64::consts::PI / (eta * eta)
+}
+
+const POOL_SPPM: &str = r#"<integrator type="sppm">
+        <integer name="max_depth" value="4"/>
+        <integer name="photon_count" value="100000"/>
+        <float name="initial_radius" value="0.02"/>
+    </integrator>"#;
+
+fn pool_render<S: Spectrum>(integrator: &str, iterations: u32) -> Image {
+    let path = std::env::temp_dir().join("snell-sppm-pool.xml");
+    let options = LoadOptions {
+        spp: Some(iterations),
+        ..LoadOptions::default()
+    };
+    let scene =
+        snell::load_str(&path, &pool_scene(integrator), &options).unwrap_or_else(|e| panic!("{e}"));
+    snell::render::<S>(&scene, &RenderOptions::default())
+        .expect("render")
+        .0
+}
+
+#[test]
+fn pool_floor_through_water_matches_the_closed_form() {
+    let expected = pool_expected();
+    // The path tracer finds none of this light.
+    let path = pool_render::<Rgb>(
+        r#"<integrator type="path"><integer name="max_depth" value="4"/></integrator>"#,
+        16,
+    );
+    let m = mean(&path);
+    eprintln!(
+        "pool: path tracer mean {:.3e}; expected {expected:.4}",
+        m[1]
+    );
+    assert!(
+        m.iter().all(|&v| v < 1e-3 * expected),
+        "the path tracer found the SDS light: {m:?}"
+    );
+    // The view spans ±0.07 on the floor: irradiance within 0.4 % of the axis'.
+    for (mode, img) in [
+        ("rgb", pool_render::<Rgb>(POOL_SPPM, 48)),
+        ("spectral", pool_render::<Sampled>(POOL_SPPM, 48)),
+    ] {
+        let m = mean(&img);
+        eprintln!(
+            "pool sppm ({mode}): mean {:.4} {:.4} {:.4}, expected {expected:.4}, ratio {:.4}",
+            m[0],
+            m[1],
+            m[2],
+            m[1] / expected
+        );
+        for c in 0..3 {
+            assert!(
+                (m[c] / expected - 1.0).abs() < 0.03,
+                "{mode} channel {c}: {:.4} vs {expected:.4}",
+                m[c]
+            );
+        }
+    }
+}
+
+/// The image depends on the seed and the iterations only: the same for 1
+/// and 2 threads and for one pass or several.
+#[test]
+fn deterministic_across_threads_and_passes() {
+    let text = with_integrator("scenes/caustic-cornell-box.xml", SPPM);
+    let scene = load(
+        "scenes/caustic-cornell-box.xml",
+        &text,
+        &[("res", "32"), ("photons", "5000")],
+        6,
+    );
+    let one = render(&scene, 1);
+    let two = render(&scene, 2);
+    let passes = snell::render::<Rgb>(
+        &scene,
+        &RenderOptions {
+            threads: 2,
+            passes: 3,
+            ..RenderOptions::default()
+        },
+    )
+    .expect("render")
+    .0;
+    assert!(mean(&one)[0] > 0.0);
+    assert_eq!(one.pixels, two.pixels, "1 and 2 threads differ");
+    assert_eq!(
+        one.pixels, passes.pixels,
+        "one pass and three passes differ"
+    );
+}
+
+#[test]
+fn bad_parameters_are_located_errors() {
+    let path = std::env::temp_dir().join("snell-sppm-errors.xml");
+    let head = r#"<scene version="3.0.0">
+    <sensor type="perspective"><film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film></sensor>
+"#;
+    let light = "    <emitter type=\"point\"><point name=\"position\" x=\"0\" y=\"1\" z=\"0\"/><rgb name=\"intensity\" value=\"1\"/></emitter>\n";
+    for (integrator, emitter, col, needle) in [
+        (
+            r#"<integrator type="sppm"><float name="alpha" value="1.5"/></integrator>"#,
+            light,
+            29,
+            "between 0 and 1",
+        ),
+        (
+            r#"<integrator type="sppm"><integer name="photon_count" value="0"/></integrator>"#,
+            light,
+            29,
+            "between 1 and",
+        ),
+        (
+            r#"<integrator type="sppm"><float name="initial_radius" value="-1"/></integrator>"#,
+            light,
+            29,
+            "positive length",
+        ),
+        (
+            r#"<integrator type="sppm"><integer name="max_depth" value="0"/></integrator>"#,
+            light,
+            29,
+            "positive integer",
+        ),
+        (
+            r#"<integrator type="sppm"><integer name="granularity" value="-2"/></integrator>"#,
+            light,
+            29,
+            "0 (automatic)",
+        ),
+        (
+            r#"<integrator type="sppm"><integer name="photonCount" value="10"/></integrator>"#,
+            light,
+            29,
+            "photonCount",
+        ),
+    ] {
+        let text = format!("{head}    {integrator}\n{emitter}</scene>\n");
+        let e = match snell::load_str(&path, &text, &LoadOptions::default()) {
+            Ok(_) => panic!("{integrator} should fail"),
+            Err(e) => e,
+        };
+        let loc = e
+            .location
+            .as_ref()
+            .unwrap_or_else(|| panic!("no location: {e}"));
+        assert_eq!((loc.line, loc.col), (3, col), "{e}");
+        assert!(e.to_string().contains(needle), "{e}");
+    }
+    // Polarized modes, sample ranges (for merging) and resuming are refused.
+    let text = format!(
+        "{head}    <integrator type=\"sppm\"><integer name=\"photon_count\" value=\"100\"/></integrator>\n{light}</scene>\n"
+    );
+    let scene = snell::load_str(&path, &text, &LoadOptions::default()).expect("scene");
+    let e = snell::session::prepare(&scene, Mode::RgbPolarized, "pool.xml")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("sppm") && e.contains("polarization"), "{e}");
+    let e = snell::session::render_samples(&scene, Mode::Rgb, &RenderOptions::default(), 0..1)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("cannot be split"), "{e}");
+    let (_, _, state) = snell::session::render_from(
+        &scene,
+        Mode::Rgb,
+        &RenderOptions::default(),
+        None,
+        &mut |_| {},
+    )
+    .expect("render");
+    let e = snell::session::render_from(
+        &scene,
+        Mode::Rgb,
+        &RenderOptions::default(),
+        Some(state),
+        &mut |_| {},
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("cannot resume"), "{e}");
+}
+
+/// Photons from an environment: the same floor under flat water, lit by a
+/// white constant sky (radiance 1) instead, in a box with black walls
+/// between the surface and the floor. Light enters only through the
+/// surface: the floor's irradiance is E = π (1 − R̄), R̄ Fresnel's
+/// reflectance averaged over the cosine-weighted hemisphere; the camera
+/// sees the sky mirrored by the surface (R₀) plus the floor through it:
+/// L = R₀ + T₀ ρ (1 − R̄) / η².
+#[test]
+fn floor_under_water_in_a_sky_matches_the_closed_form() {
+    let eta = 1.333f64;
+    let fresnel = |cos_i: f64| {
+        let sin_t = (1.0 - cos_i * cos_i).max(0.0).sqrt() / eta;
+        let cos_t = (1.0 - sin_t * sin_t).sqrt();
+        let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+        let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+        0.5 * (rs * rs + rp * rp)
+    };
+    let steps = 20000;
+    let r_bar: f64 = (0..steps)
+        .map(|k| {
+            let theta = (k as f64 + 0.5) / steps as f64 * std::f64::consts::FRAC_PI_2;
+            fresnel(theta.cos()) * 2.0 * theta.sin() * theta.cos() * std::f64::consts::FRAC_PI_2 / steps as f64
+        })
+        .sum();
+    let (r0, rho) = (fresnel(1.0), 0.8);
+    let expected = r0 + (1.0 - r0) * rho * (1.0 - r_bar) / (eta * eta);
+    let wall = |t: &str| format!(r#"    <shape type="rectangle"><transform name="to_world"><scale x="2" y="0.25"/>{t}</transform><bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf></shape>"#);
+    let walls = [
+        wall(r#"<translate y="-0.25" z="2"/>"#),
+        wall(r#"<translate y="-0.25" z="-2"/>"#),
+        wall(r#"<rotate y="1" angle="90"/><translate x="2" y="-0.25"/>"#),
+        wall(r#"<rotate y="1" angle="90"/><translate x="-2" y="-0.25"/>"#),
+    ]
+    .join("\n");
+    let text = pool_scene(POOL_SPPM)
+        .replace(r#"<point name="position" x="0" y="1" z="0"/>"#, "")
+        .replace(r#"<emitter type="point">"#, r#"<emitter type="constant">"#)
+        .replace(r#"<rgb name="intensity" value="10, 10, 10"/>"#, r#"<rgb name="radiance" value="1"/>"#)
+        .replace(r#"<scale value="10"/>"#, r#"<scale value="2"/>"#)
+        .replace("</scene>", &format!("{walls}\n</scene>"));
+    let path = std::env::temp_dir().join("snell-sppm-sky.xml");
+    let scene = snell::load_str(&path, &text, &LoadOptions { spp: Some(64), ..LoadOptions::default() }).unwrap_or_else(|e| panic!("{e}"));
+    let img = snell::render::<Rgb>(&scene, &RenderOptions::default()).expect("render").0;
+    let m = mean(&img);
+    eprintln!("sky sppm: mean {:.4} {:.4} {:.4}, expected {expected:.4} (R0 {r0:.4}, R̄ {r_bar:.4})", m[0], m[1], m[2]);
+    for c in 0..3 {
+        assert!((m[c] / expected - 1.0).abs() < 0.03, "channel {c}: {:.4} vs {expected:.4}", m[c]);
+    }
+}

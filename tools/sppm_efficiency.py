@@ -1,0 +1,117 @@
+#!/usr/bin/env python3
+"""Efficiency of `sppm` against `path` at (about) equal time.
+
+For each scene: a long path-traced reference (--ref-spp), then --runs renders
+(seeds 1..runs) with `sppm` at --iterations, then --runs renders with `path`
+at the sample count that takes about as long (calibrated by a short render);
+prints for each method
+
+    efficiency = 1 / (relMSE × seconds),
+
+relMSE = mean over pixels and channels of (x − ref)² / (ref² + 0.01),
+averaged over the runs, seconds the median CPU time of the render process
+divided by --threads (fairer than wall time on a shared machine; wall time
+is printed too). The scene's integrator block is replaced by each method's
+(both with the scene's max_depth); --drop removes an element by a regex
+(e.g. the pool's sky, which sppm cannot emit photons from).
+
+Usage: python3 tools/sppm_efficiency.py --scene scenes/caustic-cornell-box.xml
+           [--res 64] [--threads 2] [--ref-spp 8192] [--iterations 64]
+           [--photons 50000] [--runs 3] [--drop REGEX] [-D key=value ...]
+"""
+import argparse
+import json
+import os
+import re
+import statistics
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+from bench import read_pfm, rel_mse  # noqa: E402
+
+
+def variant(args, integrator):
+    text = open(args.scene).read()
+    text, n = re.subn(r"<integrator.*</integrator>", integrator, text, count=1, flags=re.S)
+    if n != 1:
+        sys.exit(f"{args.scene}: no <integrator> block")
+    for pattern in args.drop:
+        text, n = re.subn(pattern, "", text, flags=re.S)
+        if n == 0:
+            sys.exit(f"--drop {pattern!r} matched nothing")
+    path = os.path.join(os.path.dirname(args.scene), f".sppm-eff-{args.tag}-" + os.path.basename(args.scene))
+    with open(path, "w") as f:
+        f.write(text)
+    return path
+
+
+def render(args, scene, spp, seed, out):
+    stats = f"/tmp/sppm-eff-{args.tag}-stats.json"
+    cmd = [args.snell, "render", scene, "-o", out, "--spp", str(spp), "--seed", str(seed),
+           "--threads", str(args.threads), "--stats", stats, "--quiet", "-D", f"res={args.res}"]
+    for kv in args.defines:
+        cmd += ["-D", kv]
+    before = os.times()
+    r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    after = os.times()
+    if r.returncode != 0:
+        print(r.stdout)
+        sys.exit(f"snell failed with exit code {r.returncode}")
+    with open(stats) as f:
+        wall = float(json.load(f)["render_seconds"])
+    cpu = (after.children_user + after.children_system) - (before.children_user + before.children_system)
+    return wall, cpu / args.threads, read_pfm(out)[2]
+
+
+def measure(args, name, scene, spp, ref):
+    errs, walls, cpus = [], [], []
+    for seed in range(1, args.runs + 1):
+        wall, cpu, img = render(args, scene, spp, seed, f"/tmp/sppm-eff-{args.tag}-{name}-{seed}.pfm")
+        errs.append(rel_mse(img, ref))
+        walls.append(wall)
+        cpus.append(cpu)
+    e, cpu, wall = statistics.mean(errs), statistics.median(cpus), statistics.median(walls)
+    eff = 1.0 / (e * cpu)
+    print(f"  {name:6s} {spp:6d} spp/iterations: relMSE {e:.3e}, cpu/threads {cpu:7.2f} s (wall {wall:7.2f} s), efficiency {eff:9.2f}")
+    return eff, cpu
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--scene", required=True)
+    ap.add_argument("--res", type=int, default=64)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--ref-spp", type=int, default=8192)
+    ap.add_argument("--iterations", type=int, default=64)
+    ap.add_argument("--photons", type=int, default=50000)
+    ap.add_argument("--max-depth", type=int, default=8)
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--drop", action="append", default=[])
+    ap.add_argument("-D", dest="defines", action="append", default=[])
+    ap.add_argument("--tag", default="run", help="names the temporary files (runs in parallel need different tags)")
+    ap.add_argument("--snell", default=os.path.join(ROOT, "target", "release", "snell"))
+    args = ap.parse_args()
+    path_xml = f'<integrator type="path"><integer name="max_depth" value="{args.max_depth}"/></integrator>'
+    sppm_xml = (f'<integrator type="sppm"><integer name="max_depth" value="{args.max_depth}"/>'
+                f'<integer name="photon_count" value="{args.photons}"/></integrator>')
+    path_scene, sppm_scene = variant(args, path_xml), None
+    try:
+        sppm_scene = variant(args, sppm_xml)
+        print(f"{args.scene} at {args.res} px, {args.threads} threads, drop {args.drop}")
+        wall, cpu, ref = render(args, path_scene, args.ref_spp, 1000, f"/tmp/sppm-eff-{args.tag}-ref.pfm")
+        print(f"  reference: path {args.ref_spp} spp, cpu/threads {cpu:.1f} s")
+        eff_sppm, t_sppm = measure(args, "sppm", sppm_scene, args.iterations, ref)
+        _, t16, _ = render(args, path_scene, 16, 999, f"/tmp/sppm-eff-{args.tag}-cal.pfm")
+        spp = max(1, round(16 * t_sppm / max(t16, 1e-3)))
+        eff_path, _ = measure(args, "path", path_scene, spp, ref)
+        print(f"  sppm / path efficiency: {eff_sppm / eff_path:.2f}x")
+    finally:
+        for p in (path_scene, sppm_scene):
+            if p and os.path.exists(p):
+                os.remove(p)
+
+
+if __name__ == "__main__":
+    main()
