@@ -41,7 +41,7 @@ pub fn removed(kind: Kind, name: &str) -> Option<&'static str> {
     match (kind, name) {
         (Kind::Film, "ldrfilm") => Some("use hdrfilm (Snell writes 8-bit sRGB with -o image.png)"),
         (Kind::Sampler, "halton" | "hammersley") => Some("use sobol or zsobol (Owen-scrambled Sobol points)"),
-        (Kind::Integrator, "mlt" | "pssmlt" | "erpt" | "photonmapper" | "ppm" | "sppm" | "vpl") => Some("use path"),
+        (Kind::Integrator, "mlt" | "pssmlt" | "erpt" | "photonmapper" | "ppm" | "vpl") => Some("use path, bdpt or sppm"),
         (Kind::Bsdf, "phong" | "ward" | "roughcoating" | "coating" | "irawan" | "hk" | "difftrans" | "roughdiffuse") => {
             Some("Mitsuba 3 has no such BSDF; diffuse, plastic, conductor or dielectric are the closest")
         }
