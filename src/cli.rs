@@ -402,6 +402,7 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         let mut json = serde_json::to_value(&stats)?;
         json["load_seconds"] = load_seconds.into();
         json["scene"] = args.scene.display().to_string().into();
+        json["simd"] = scene.accel.simd_level().name().into();
         json["mode"] = args.mode.to_possible_value().map_or_else(String::new, |v| v.get_name().to_string()).into();
         std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n").with_context(|| format!("cannot write {}", path.display()))?;
     }

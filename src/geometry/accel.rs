@@ -1,8 +1,10 @@
 //! The acceleration structure: an 8-wide BVH over every primitive of every
 //! shape. It is built as a binary SAH BVH (`accel/build.rs`, parallel) and
 //! collapsed to nodes that keep their eight child boxes in SoA form, so one
-//! SIMD slab test (`accel/simd.rs`: AVX2 on x86-64-v3, plain arrays
-//! elsewhere) checks all of them. Leaves refer to triangles by index into
+//! SIMD slab test checks all of them. The traversal is generic over the
+//! lanes type of `accel/simd.rs` and compiled three times: AVX-512, AVX2 +
+//! FMA and portable (SSE2 / NEON); which one runs is chosen at run time
+//! from the CPU (`SimdLevel`, overridable with `SNELL_SIMD`). Leaves refer to triangles by index into
 //! their mesh (whose vertex and index buffers the BVH shares, see
 //! `mesh::Shared`: no copy of the geometry); a leaf's triangles are gathered
 //! eight at a time into SoA registers and tested at once by a SIMD
@@ -38,7 +40,10 @@ use super::Ray;
 use crate::math::Transform;
 use build::{Aabb, Item, OTHER, PACKET};
 use glam::{Vec3, Vec3A};
-use simd::F8;
+#[cfg(target_arch = "x86_64")]
+use simd::Avx;
+use simd::{Lanes, Portable};
+pub use simd::Level as SimdLevel;
 use std::mem::MaybeUninit;
 
 /// Intersection data of one primitive (scalar form: non-triangles in
@@ -88,8 +93,9 @@ const WIDTH: usize = 8;
 /// Eight child boxes in SoA form: `b[0..3]` the minima on x, y, z, `b[3..6]`
 /// the maxima. Empty slots have an inverted (+∞, −∞) box.
 #[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
 struct Node {
-    b: [F8; 6],
+    b: [[f32; WIDTH]; 6],
     /// A node index, or `LEAF | leaf index`.
     children: [u32; WIDTH],
 }
@@ -126,11 +132,11 @@ struct MeshRef {
 /// −e1 = v0 − v1, e2 = v2 − v0 and the unnormalised normal e2 × e1.
 /// Unused lanes are degenerate (all zero), which the test rejects.
 #[derive(Clone, Copy, Debug)]
-struct TriPacket {
-    v0: [F8; 3],
-    e1n: [F8; 3],
-    e2: [F8; 3],
-    ng: [F8; 3],
+struct TriPacket<V> {
+    v0: [V; 3],
+    e1n: [V; 3],
+    e2: [V; 3],
+    ng: [V; 3],
 }
 
 /// Leaves hold at most this many primitives.
@@ -151,6 +157,8 @@ pub struct Accel {
     instances: Vec<Instance>,
     /// Bounds of everything (min, max); inverted when empty.
     extent: (Vec3, Vec3),
+    /// The instruction set the traversal runs with.
+    level: SimdLevel,
 }
 
 fn prim_geom(shape: &Shape, prim: usize) -> (PrimGeom, Aabb) {
@@ -218,21 +226,21 @@ fn intersect_prim_bary(g: &PrimGeom, o: Vec3A, d: Vec3A, tmax: f32) -> (f32, f32
 }
 
 /// Per-ray constants of the SIMD tests.
-struct RayData {
+struct RayData<V> {
     o: Vec3A,
     d: Vec3A,
     /// Splatted origin and direction, for the triangle packets.
-    o8: [F8; 3],
-    d8: [F8; 3],
+    o8: [V; 3],
+    d8: [V; 3],
     /// Slab test: entry distance on an axis is `plane · inv − oinv_n`,
     /// exit distance `plane · inv − oinv_f` (one FMA each). The inverse
     /// direction has zero components replaced by tiny ones (no NaN); the
     /// two offsets are o·inv ± a bound on its rounding error, and exit
     /// distances are scaled up by `FAR` before the comparison, so that the
     /// test is conservative: it never loses a box the exact ray enters.
-    inv: [F8; 3],
-    oinv_n: [F8; 3],
-    oinv_f: [F8; 3],
+    inv: [V; 3],
+    oinv_n: [V; 3],
+    oinv_f: [V; 3],
     /// Index into `Node::b` of the near and far plane on each axis.
     near: [usize; 3],
     far: [usize; 3],
@@ -242,9 +250,9 @@ struct RayData {
 const REL: f32 = 4.0 * f32::EPSILON;
 const FAR: f32 = 1.0 + 2.0 * REL;
 
-impl RayData {
+impl<V: Lanes> RayData<V> {
     #[inline(always)]
-    fn new(ray: &Ray) -> RayData {
+    fn new(ray: &Ray) -> RayData<V> {
         let o = Vec3A::from(ray.o);
         let d = Vec3A::from(ray.d);
         let tiny = Vec3A::splat(1e-20);
@@ -255,7 +263,7 @@ impl RayData {
         let (oinv_n, oinv_f) = (oinv + err, oinv - err);
         let neg = inv.cmplt(Vec3A::ZERO).bitmask() as usize;
         let (nx, ny, nz) = (neg & 1, (neg >> 1) & 1, neg >> 2);
-        let s = |v: Vec3A| [F8::splat(v.x), F8::splat(v.y), F8::splat(v.z)];
+        let s = |v: Vec3A| [V::splat(v.x), V::splat(v.y), V::splat(v.z)];
         RayData {
             o,
             d,
@@ -272,16 +280,16 @@ impl RayData {
     /// Entry distances into the children and the mask of those the ray
     /// enters within [0, tmax].
     #[inline(always)]
-    fn slab(&self, node: &Node, tmax: f32) -> (F8, u32) {
+    fn slab(&self, node: &Node, tmax: f32) -> (V, u32) {
         // SAFETY: `near` and `far` hold indices in 0..6 by construction.
         let (nx, ny, nz, fx, fy, fz) = unsafe {
             (
-                *node.b.get_unchecked(self.near[0]),
-                *node.b.get_unchecked(self.near[1]),
-                *node.b.get_unchecked(self.near[2]),
-                *node.b.get_unchecked(self.far[0]),
-                *node.b.get_unchecked(self.far[1]),
-                *node.b.get_unchecked(self.far[2]),
+                V::load(node.b.get_unchecked(self.near[0])),
+                V::load(node.b.get_unchecked(self.near[1])),
+                V::load(node.b.get_unchecked(self.near[2])),
+                V::load(node.b.get_unchecked(self.far[0])),
+                V::load(node.b.get_unchecked(self.far[1])),
+                V::load(node.b.get_unchecked(self.far[2])),
             )
         };
         let tnx = nx.mul_sub(self.inv[0], self.oinv_n[0]);
@@ -290,16 +298,16 @@ impl RayData {
         let tfx = fx.mul_sub(self.inv[0], self.oinv_f[0]);
         let tfy = fy.mul_sub(self.inv[1], self.oinv_f[1]);
         let tfz = fz.mul_sub(self.inv[2], self.oinv_f[2]);
-        let tnear = tnx.max(tny).max(tnz.max(F8::splat(0.0)));
-        let tfar = tfx.min(tfy).min(tfz.min(F8::splat(tmax)));
-        (tnear, tnear.le(tfar * F8::splat(FAR)).bitmask())
+        let tnear = tnx.max(tny).max(tnz.max(V::splat(0.0)));
+        let tfar = tfx.min(tfy).min(tfz.min(V::splat(tmax)));
+        (tnear, tnear.le(tfar * V::splat(FAR)).bitmask())
     }
 
     /// Möller–Trumbore on a packet, divisions deferred: returns the
     /// numerators of t, b1, b2 and |det|, all with det's sign removed, and
     /// the mask of hits in (0, tmax).
     #[inline(always)]
-    fn triangles(&self, p: &TriPacket, tmax: f32) -> ([F8; 4], u32) {
+    fn triangles(&self, p: &TriPacket<V>, tmax: f32) -> ([V; 4], u32) {
         let [dx, dy, dz] = self.d8;
         // c = v0 − o, r = d × c
         let cx = p.v0[0] - self.o8[0];
@@ -315,13 +323,13 @@ impl RayData {
         let sign = det.sign();
         let adet = det.xor(sign);
         let (t, u, v) = (t.xor(sign), u.xor(sign), v.xor(sign));
-        let zero = F8::splat(0.0);
-        let ok = F8::splat(1e-12).le(adet)
+        let zero = V::splat(0.0);
+        let ok = V::splat(1e-12).le(adet)
             & zero.le(u)
             & zero.le(v)
             & (u + v).le(adet)
             & zero.lt(t)
-            & t.lt(F8::splat(tmax) * adet);
+            & t.lt(V::splat(tmax) * adet);
         ([t, u, v, adet], ok.bitmask())
     }
 }
@@ -410,11 +418,19 @@ impl Accel {
             groups: group_accels,
             instances: kept,
             extent: (extent.lo.into(), extent.hi.into()),
+            level: SimdLevel::current(),
         };
         if items.is_empty() {
             return accel;
         }
         let bvh2 = build::build(items, MAX_LEAF);
+        // Exact or upper-bound capacities: no vector doubles (and copies)
+        // while the binary tree is still alive, and unused capacity is
+        // never touched (no resident memory) before `shrink_to_fit`.
+        let n_leaves = bvh2.nodes.iter().filter(|n| !n.is_inner()).count();
+        accel.tris.reserve_exact(n_tris as usize);
+        accel.leaves.reserve_exact(n_leaves);
+        accel.nodes.reserve_exact(n_leaves);
         let mut c = Collapse { bvh2: &bvh2, mesh_first: &mesh_first, others: &others, other_refs: &other_refs, accel: &mut accel, max_depth: 0 };
         c.node(0, 1);
         assert!((WIDTH as u32 - 1) * c.max_depth + 1 < STACK as u32, "BVH too deep for the traversal stack");
@@ -427,7 +443,7 @@ impl Accel {
 
     /// The triangles `refs` (at most `PACKET`) gathered from their meshes.
     #[inline(always)]
-    fn gather(&self, refs: &[TriRef]) -> TriPacket {
+    fn gather<V: Lanes>(&self, refs: &[TriRef]) -> TriPacket<V> {
         let mut f = [[[0.0f32; PACKET]; 3]; 3];
         for (lane, r) in refs.iter().enumerate() {
             let m = &self.meshes[r.mesh as usize];
@@ -439,7 +455,7 @@ impl Accel {
                 f[k][2][lane] = p.z;
             }
         }
-        let [v0, v1, v2] = f.map(|c| c.map(F8::from_array));
+        let [v0, v1, v2] = f.map(|c| c.map(V::from_array));
         let e1 = [v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]];
         let e2 = [v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2]];
         // e2 × e1, product by product as the scalar cross product rounds.
@@ -478,28 +494,98 @@ impl Accel {
             + self.groups.iter().map(Accel::memory_bytes).sum::<usize>()
     }
 
+    /// The instruction set the traversal runs with.
+    pub fn simd_level(&self) -> SimdLevel {
+        self.level
+    }
+
+    /// Makes the traversal run with `level` (for tests and measurements).
+    /// Panics if this CPU cannot run it (`SimdLevel::supported`).
+    pub fn set_simd_level(&mut self, level: SimdLevel) {
+        assert!(level.supported(), "this CPU cannot run {level:?}");
+        self.level = level;
+    }
+
     /// The closest hit along the ray before `ray.tmax`.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        // Two copies of the traversal: without instances the instance code
-        // is compiled out, so a scene without them runs as before.
-        if self.instances.is_empty() { self.closest::<false>(ray) } else { self.closest::<true>(ray) }
+        match self.level {
+            // SAFETY: `level` is only ever set to a level the CPU supports.
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx512 => unsafe { self.closest_avx512(ray) },
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => unsafe { self.closest_avx2(ray) },
+            _ => self.closest_portable(ray),
+        }
     }
 
     /// Whether anything lies on the ray before `ray.tmax`.
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
-        if self.instances.is_empty() { self.any_hit::<false>(ray) } else { self.any_hit::<true>(ray) }
+        match self.level {
+            // SAFETY: `level` is only ever set to a level the CPU supports.
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx512 => unsafe { self.occluded_avx512(ray) },
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => unsafe { self.occluded_avx2(ray) },
+            _ => self.occluded_portable(ray),
+        }
+    }
+
+    // Two copies of each traversal per level: without instances the
+    // instance code is compiled out, so a scene without them runs as before.
+    #[inline(always)]
+    fn closest_lanes<V: Lanes>(&self, ray: &Ray) -> Option<Hit> {
+        if self.instances.is_empty() { self.closest::<false, V>(ray) } else { self.closest::<true, V>(ray) }
+    }
+
+    #[inline(always)]
+    fn occluded_lanes<V: Lanes>(&self, ray: &Ray) -> bool {
+        if self.instances.is_empty() { self.any_hit::<false, V>(ray) } else { self.any_hit::<true, V>(ray) }
+    }
+
+    #[inline(never)]
+    fn closest_portable(&self, ray: &Ray) -> Option<Hit> {
+        self.closest_lanes::<Portable>(ray)
+    }
+
+    #[inline(never)]
+    fn occluded_portable(&self, ray: &Ray) -> bool {
+        self.occluded_lanes::<Portable>(ray)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn closest_avx2(&self, ray: &Ray) -> Option<Hit> {
+        self.closest_lanes::<Avx>(ray)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn occluded_avx2(&self, ray: &Ray) -> bool {
+        self.occluded_lanes::<Avx>(ray)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512dq,avx512bw")]
+    fn closest_avx512(&self, ray: &Ray) -> Option<Hit> {
+        self.closest_lanes::<Avx>(ray)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512dq,avx512bw")]
+    fn occluded_avx512(&self, ray: &Ray) -> bool {
+        self.occluded_lanes::<Avx>(ray)
     }
 
     /// Closest hit; `INSTANCES`: this BVH may hold instances (whose groups
     /// are traced by the `false` copy: groups do not nest).
     #[inline(always)]
-    fn closest<const INSTANCES: bool>(&self, ray: &Ray) -> Option<Hit> {
+    fn closest<const INSTANCES: bool, V: Lanes>(&self, ray: &Ray) -> Option<Hit> {
         if self.nodes.is_empty() {
             return None;
         }
-        let r = RayData::new(ray);
+        let r = RayData::<V>::new(ray);
         let mut tmax = ray.tmax;
         let mut found: Option<(PrimRef, f32, f32)> = None;
         let mut instance = NO_INSTANCE;
@@ -547,10 +633,10 @@ impl Accel {
             } else {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
                 for refs in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET) {
-                    let ([t, u, v, adet], mut mask) = r.triangles(&self.gather(refs), tmax);
+                    let ([t, u, v, adet], mut mask) = r.triangles(&self.gather::<V>(refs), tmax);
                     if mask != 0 {
                         // The deferred division, only for packets with a hit.
-                        let inv = F8::splat(1.0) / adet;
+                        let inv = V::splat(1.0) / adet;
                         let (t, u, v) = ((t * inv).to_array(), u * inv, v * inv);
                         let mut lane = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
@@ -574,7 +660,7 @@ impl Accel {
                     let g = &self.others[oi as usize];
                     if let (true, PrimGeom::Instance(i)) = (INSTANCES, g) {
                         let (group, local) = self.instance_ray(*i, ray, tmax);
-                        if let Some(h) = group.closest::<false>(&local) {
+                        if let Some(h) = group.closest::<false, V>(&local) {
                             tmax = h.t;
                             found = Some((PrimRef { shape: h.shape, prim: h.prim }, h.bary.0, h.bary.1));
                             instance = *i;
@@ -609,11 +695,11 @@ impl Accel {
     }
 
     #[inline(always)]
-    fn any_hit<const INSTANCES: bool>(&self, ray: &Ray) -> bool {
+    fn any_hit<const INSTANCES: bool, V: Lanes>(&self, ray: &Ray) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
-        let r = RayData::new(ray);
+        let r = RayData::<V>::new(ray);
         let tmax = ray.tmax;
         let mut stack: [MaybeUninit<u32>; STACK] = [MaybeUninit::uninit(); STACK];
         let mut sp = 0usize;
@@ -635,7 +721,7 @@ impl Accel {
             } else {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
                 for refs in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET) {
-                    if r.triangles(&self.gather(refs), tmax).1 != 0 {
+                    if r.triangles(&self.gather::<V>(refs), tmax).1 != 0 {
                         return true;
                     }
                 }
@@ -643,7 +729,7 @@ impl Accel {
                     let g = &self.others[oi as usize];
                     if let (true, PrimGeom::Instance(i)) = (INSTANCES, g) {
                         let (group, local) = self.instance_ray(*i, ray, tmax);
-                        if group.any_hit::<false>(&local) {
+                        if group.any_hit::<false, V>(&local) {
                             return true;
                         }
                     } else if intersect_prim_bary(g, r.o, r.d, tmax).0 < tmax {
@@ -704,7 +790,7 @@ impl Collapse<'_> {
     fn node(&mut self, n2: usize, depth: u32) -> u32 {
         self.max_depth = self.max_depth.max(depth);
         let id = self.accel.nodes.len();
-        let (inf, ninf) = (F8::splat(f32::INFINITY), F8::splat(f32::NEG_INFINITY));
+        let (inf, ninf) = ([f32::INFINITY; WIDTH], [f32::NEG_INFINITY; WIDTH]);
         self.accel.nodes.push(Node { b: [inf, inf, inf, ninf, ninf, ninf], children: [0; WIDTH] });
         let is_inner = |k: usize| self.bvh2.nodes[k].is_inner();
         // Open the largest inner child until the node is full.
@@ -731,7 +817,7 @@ impl Collapse<'_> {
                 bounds[a + 3][slot] = b.hi[a];
             }
         }
-        self.accel.nodes[id] = Node { b: bounds.map(F8::from_array), children };
+        self.accel.nodes[id] = Node { b: bounds, children };
         id as u32
     }
 }
@@ -774,7 +860,15 @@ mod tests {
     /// Checks closest hits and occlusion of `n` random rays against brute
     /// force; returns how many rays hit something.
     fn check(shapes: &[Shape], n: usize, seed: u64, lo: Vec3, hi: Vec3) -> usize {
-        let accel = Accel::build(shapes);
+        check_at(None, shapes, n, seed, lo, hi)
+    }
+
+    /// `check` with the traversal forced to `level` (else the current one).
+    fn check_at(level: Option<SimdLevel>, shapes: &[Shape], n: usize, seed: u64, lo: Vec3, hi: Vec3) -> usize {
+        let mut accel = Accel::build(shapes);
+        if let Some(level) = level {
+            accel.set_simd_level(level);
+        }
         let mut rng = Pcg32::new(seed, 7);
         let mut hits = 0;
         for i in 0..n {
@@ -932,6 +1026,43 @@ mod tests {
         }
         let hits = check(&shapes, 10000, 23, Vec3::splat(-3.5), Vec3::splat(3.5));
         assert!(hits > 1500, "{hits}");
+    }
+
+    /// Every instruction-set level this CPU runs agrees with brute force
+    /// (triangles with degenerate ones, spheres, disks), and AVX2 and
+    /// AVX-512 give bit-identical hits.
+    #[test]
+    fn every_simd_level_agrees_with_brute_force() {
+        let mut rng = Pcg32::new(31, 4);
+        let mut shapes = vec![];
+        for k in 0..3 {
+            let centre = Vec3::new(k as f32 - 1.0, 0.2 * k as f32, 0.0);
+            shapes.push(shape(ShapeGeometry::Mesh(random_mesh(&mut rng, 400 + 100 * k, centre))));
+            shapes.push(shape(ShapeGeometry::Sphere(Sphere { center: centre + Vec3::Z, radius: 0.25, to_object: Transform::IDENTITY, flip_normals: false })));
+            let t = Transform::from_matrix(Mat4::from_translation(centre - Vec3::Z) * Mat4::from_rotation_x(k as f32)).unwrap();
+            shapes.push(shape(ShapeGeometry::Disk(Disk::new(t, false))));
+        }
+        let levels: Vec<SimdLevel> = SimdLevel::ALL.into_iter().filter(|l| l.supported()).collect();
+        eprintln!("levels tested: {levels:?}");
+        for &level in &levels {
+            let hits = check_at(Some(level), &shapes, 6000, 41, Vec3::splat(-3.0), Vec3::splat(3.0));
+            assert!(hits > 1000, "{level:?}: {hits}");
+        }
+        if levels.contains(&SimdLevel::Avx512) {
+            let mut a = Accel::build(&shapes);
+            let mut b = Accel::build(&shapes);
+            a.set_simd_level(SimdLevel::Avx2);
+            b.set_simd_level(SimdLevel::Avx512);
+            let mut rng = Pcg32::new(8, 8);
+            for _ in 0..5000 {
+                let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 6.0 - 3.0;
+                let d = square_to_uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
+                let ray = Ray::new(o, d);
+                let key = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.bary.0.to_bits(), h.bary.1.to_bits(), h.shape, h.prim));
+                assert_eq!(key(a.intersect(&ray)), key(b.intersect(&ray)));
+                assert_eq!(a.occluded(&ray), b.occluded(&ray));
+            }
+        }
     }
 
     /// A mesh of more triangles than one build thread takes, so the two
