@@ -12,8 +12,9 @@
 //! - `calcite_polarizer_splits_without_loss`: calcite (Snell's own
 //!   `birefringent` BSDF) cannot be rendered by Mitsuba; an ideal polarizer
 //!   at θ = 0 and at θ = 90° must together pass exactly what the neutral
-//!   sheet passes, block by block (its walk-off and extinction are checked in
-//!   tests/birefringence.rs).
+//!   sheet passes, pixel by pixel, while keeping different copies of the
+//!   page (its walk-off and
+//!   extinction are checked in tests/birefringence.rs).
 
 mod common;
 use common::*;
@@ -150,35 +151,40 @@ fn gallery_scenes_match_mitsuba() {
 /// `scenes/calcite.xml` in rgb-polarized mode, 32×32: the slab's two
 /// images leave it polarized at right angles, and an ideal linear polarizer
 /// at θ and one at θ + 90° split any light between them without loss (their
-/// Mueller matrices add up to the identity's intensity row). So, with the
-/// same seeds, the renders at θ = 0 and θ = 90 must add up to the render
-/// with the sheet neutral (`polarizing=false`, transmittance 1): the image
-/// means within 1 % and every 8×8 block of the difference zero within its
-/// noise. Mitsuba has no birefringent BSDF, so this is calcite's check.
+/// Mueller matrices add up to the identity's intensity row). The sheet is a
+/// delta transmission that draws no random numbers, so with the same seed
+/// the renders at θ = 0, at θ = 90 and with the sheet neutral
+/// (`polarizing=false`, transmittance 1) trace the same paths, and the
+/// first two must add up to the third pixel by pixel, to float rounding.
+/// Each polarizer must also pass a real share (more than a fifth) of the
+/// light: the two images. Mitsuba has no birefringent BSDF, so this is
+/// calcite's check.
 #[test]
 fn calcite_polarizer_splits_without_loss() {
     let scene = repo("scenes/calcite.xml");
     let render = |theta: &str, polarizing: &str| {
-        render_passes_as::<Polarized<Rgb>>(&scene, None, params(&[("res", "32"), ("theta", theta), ("polarizing", polarizing)]), 16, 16)
+        render_passes_as::<Polarized<Rgb>>(&scene, None, params(&[("res", "32"), ("theta", theta), ("polarizing", polarizing)]), 4, 16)
     };
     let (along_x, along_y, neutral) = (render("0", "true"), render("90", "true"), render("0", "false"));
-    // The two polarizers must each take a real share (the two images).
     let (mx, my, mn) = (mean(&average(&along_x)), mean(&average(&along_y)), mean(&average(&neutral)));
+    eprintln!("calcite means: θ=0 {mx:.4?}, θ=90 {my:.4?}, neutral {mn:.4?}");
     for c in 0..3 {
         assert!(mx[c] > 0.2 * mn[c] && my[c] > 0.2 * mn[c], "channel {c}: θ=0 {} θ=90 {} neutral {}", mx[c], my[c], mn[c]);
-        let ratio = (mx[c] + my[c]) / mn[c];
-        assert!((ratio - 1.0).abs() < 0.01, "channel {c}: (θ=0 + θ=90) / neutral = {ratio:.4}");
     }
-    // Per pass: θ=0 + θ=90 − neutral, which must be zero within noise.
-    let diffs: Vec<Image> = (0..along_x.len())
-        .map(|i| {
-            let pixels = along_x[i].pixels.iter().zip(&along_y[i].pixels).zip(&neutral[i].pixels).map(|((a, b), n)| *a + *b - *n).collect();
-            Image::new(along_x[i].width, along_x[i].height, pixels)
-        })
-        .collect();
-    let zero = Image::new(32, 32, vec![Rgb::BLACK; 32 * 32]);
-    let cmp = compare(&diffs, &zero, 8, 0.0);
-    cmp.report("calcite θ=0 + θ=90 − neutral");
-    assert!(cmp.mean_z2 < 2.0, "calcite: mean z² = {:.2}", cmp.mean_z2);
-    assert!(cmp.max_z < 6.0, "calcite: block {:?} is {:.1} standard errors off", cmp.worst_block, cmp.max_z);
+    let (mut worst, mut apart, mut total) = (0.0f32, 0.0f64, 0.0f64);
+    for i in 0..neutral.len() {
+        for ((a, b), n) in along_x[i].pixels.iter().zip(&along_y[i].pixels).zip(&neutral[i].pixels) {
+            for c in 0..3 {
+                let err = (a[c] + b[c] - n[c]).abs() / (1e-3 + n[c].abs());
+                worst = worst.max(err);
+                apart += (a[c] - b[c]).abs() as f64;
+                total += n[c] as f64;
+            }
+        }
+    }
+    eprintln!("calcite: largest |θ=0 + θ=90 − neutral| / neutral {worst:.2e}; Σ|θ=0 − θ=90| / Σ neutral {:.3}", apart / total);
+    // The two images are not the same light halved: under the slab each
+    // polarizer keeps one copy of the page and removes the other.
+    assert!(apart > 0.2 * total, "calcite: θ=0 and θ=90 differ by only {:.3} of the light", apart / total);
+    assert!(worst < 1e-4, "calcite: θ=0 + θ=90 differs from the neutral sheet by {worst:.2e} (relative)");
 }
