@@ -13,8 +13,7 @@
 //!   `birefringent` BSDF) cannot be rendered by Mitsuba; an ideal polarizer
 //!   at θ = 0 and at θ = 90° must together pass exactly what the neutral
 //!   sheet passes, pixel by pixel, while keeping different copies of the
-//!   page (its walk-off and
-//!   extinction are checked in tests/birefringence.rs).
+//!   page (the walk-off and extinction are checked in tests/birefringence.rs).
 
 mod common;
 use common::*;
@@ -124,6 +123,9 @@ fn check(case: &Case) {
 /// - calcite: see `calcite_polarizer_splits_without_loss`.
 #[test]
 fn gallery_scenes_match_mitsuba() {
+    // Scenes whose light is found only now and then (caustics, the many
+    // small lights, the lamps inside the gem) get more spp per pass, so that
+    // each pass's block means are near-normal.
     let cases = [
         Case { name: "cornell-box", params: &[("res", "32")], mode: Mode::Rgb, spp: 16, block_rel_err: 2.6e-3 / 4.0 },
         Case { name: "caustic-cornell-box", params: &[("res", "32")], mode: Mode::Rgb, spp: 32, block_rel_err: 3.6e-3 / 4.0 },
