@@ -44,6 +44,26 @@ SCENE_SPP = {
     "caustics": 393216,
 }
 
+# The README gallery (scenes/*.xml) at thumbnail size for
+# tests/gallery_scenes.rs: scene stem -> (variant, parameters, spp). The
+# parameters are the scenes' own <default>s. prism and diamond use one of
+# Mitsuba's constant named IORs (their Sellmeier glasses are Snell's own); pool and
+# pool-polarizer need a polarized variant (their `stokes` integrator, the
+# polarizer sheet). calcite (the `birefringent` BSDF) is Snell's own.
+GALLERY = {
+    "cornell-box": ("llvm_ad_rgb", {"res": "32"}, 32768),
+    "caustic-cornell-box": ("llvm_ad_rgb", {"res": "32"}, 65536),
+    "snells-window": ("llvm_ad_rgb", {"res": "32"}, 32768),
+    "glass-of-water": ("llvm_ad_rgb", {"res": "32"}, 65536),
+    "metal-showcase": ("llvm_ad_rgb", {"res": "64", "height": "32"}, 32768),
+    "rough-gallery": ("llvm_ad_rgb", {"res": "48", "height": "16"}, 32768),
+    "many-lights": ("llvm_ad_rgb", {"res": "32"}, 32768),
+    "prism": ("llvm_ad_rgb", {"res": "32", "glass": "bk7"}, 65536),
+    "diamond": ("llvm_ad_rgb", {"res": "32", "gem": "diamond"}, 65536),
+    "pool": ("llvm_ad_spectral_polarized", {"res": "32"}, 32768),
+    "pool-polarizer": ("llvm_ad_spectral_polarized", {"res": "32"}, 32768),
+}
+
 
 def pick_variant(wanted):
     for v in ([wanted] if wanted else ["llvm_ad_rgb", "scalar_rgb"]):
@@ -61,8 +81,8 @@ def scene_defaults(path):
     return set(re.findall(r'<default\s+name="([^"]+)"', open(path).read()))
 
 
-def render_reference(path, res, spp, pass_spp):
-    params = {"res": str(res), "spp": str(pass_spp)}
+def render_reference(path, res, spp, pass_spp, extra=None):
+    params = {"res": str(res), "spp": str(pass_spp), **(extra or {})}
     params = {k: v for k, v in params.items() if k in scene_defaults(path)}
     scene = mi.load_file(path, **params)
     n_passes = max(1, spp // pass_spp)
@@ -102,7 +122,11 @@ def main():
     ap.add_argument("--no-readme", action="store_true")
     ap.add_argument("--stderr", action="store_true",
                     help="also write <stem>.stderr.exr, the per-pixel standard error of the mean")
+    ap.add_argument("--gallery", action="store_true",
+                    help="render the GALLERY scenes (or those named) into tests/references/gallery")
     args = ap.parse_args()
+    if args.gallery:
+        return render_gallery(args.scenes, args.pass_spp)
 
     variant = pick_variant(args.variant)
     scenes = args.scenes or (sorted(glob.glob(os.path.join(ROOT, "tests", "scenes", "*.xml")))
@@ -175,6 +199,58 @@ def main():
     for stem, scene, w, h, spp, secs, m, rel in rows:
         lines.append(f"| {stem}.exr | {scene} | {w}x{h} | {spp} | {m[0]:.5f} | {m[1]:.5f} | "
                      f"{m[2]:.5f} | {rel:.1e} | {secs:.0f} s |")
+    lines += ["", "Rows last updated on %s on a 2-core machine." % datetime.date.today().isoformat(), ""]
+    with open(readme, "w") as f:
+        f.write("\n".join(lines))
+
+
+def render_gallery(names, pass_spp):
+    """Renders GALLERY (all, or the stems in `names`) into
+    tests/references/gallery/ and updates the table in its README.md."""
+    out_dir = os.path.join(ROOT, "tests", "references", "gallery")
+    os.makedirs(out_dir, exist_ok=True)
+    readme = os.path.join(out_dir, "README.md")
+    rows = {}
+    if os.path.exists(readme):
+        for line in open(readme):
+            m = re.match(r"\| ([^ |]+)\.exr \|", line)
+            if m:
+                rows[m.group(1)] = line.rstrip("\n")
+    for stem in (names or list(GALLERY)):
+        variant, params, spp = GALLERY[stem]
+        pick_variant(variant)
+        path = os.path.join(ROOT, "scenes", stem + ".xml")
+        img, stderr, spp, secs, names_ = render_reference(path, params.get("res", 32), spp, pass_spp, params)
+        write_exr(os.path.join(out_dir, stem + ".exr"), img, names_)
+        m = img[:, :, :3].reshape(-1, 3).mean(0)
+        rel = float(stderr[:, :, :3].mean() / max(img[:, :, :3].mean(), 1e-12))
+        print(f"{stem}: {img.shape[1]}x{img.shape[0]}, {spp} spp, {secs:.0f}s, mean RGB "
+              f"{m[0]:.5f} {m[1]:.5f} {m[2]:.5f}, rel. std-error {rel:.2e}", flush=True)
+        args = " ".join(f"{k}={v}" for k, v in params.items())
+        rows[stem] = (f"| {stem}.exr | `{args}` | {variant} | {img.shape[1]}x{img.shape[0]} | {spp} | "
+                      f"{m[0]:.5f} | {m[1]:.5f} | {m[2]:.5f} | {rel:.1e} | {secs:.0f} s |")
+    lines = [
+        "# Gallery reference images",
+        "",
+        "The README gallery scenes (`scenes/*.xml`) at thumbnail size, rendered by Mitsuba %s "
+        "with `tools/make_references.py --gallery --pass-spp %d` (scene, variant, parameters "
+        "and spp from its `GALLERY` table) and compared by tests/gallery_scenes.rs. Each "
+        "scene is loaded with the parameters listed (its own `<default>`s) and rendered as "
+        "spp / %d passes with seeds 0, 1, 2, ..., averaged in float64; files as in "
+        "../README.md. The polarized variant's files hold the Stokes channels too."
+        % (mi.__version__, pass_spp, pass_spp),
+        "",
+        "prism and diamond are rendered with a constant named IOR (`glass=bk7`, `gem=diamond`): "
+        "their default Sellmeier glasses are Snell's own. calcite (`birefringent`) has no "
+        "Mitsuba reference; tests/gallery_scenes.rs checks it another way.",
+        "",
+        "\"rel. std-error\" is the mean per-pixel standard error of the reference "
+        "(from the spread of the passes) divided by the image mean.",
+        "",
+        "| reference | parameters | variant | size | spp | mean R | mean G | mean B | rel. std-error | render time |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    lines += [rows[k] for k in GALLERY if k in rows]
     lines += ["", "Rows last updated on %s on a 2-core machine." % datetime.date.today().isoformat(), ""]
     with open(readme, "w") as f:
         f.write("\n".join(lines))
