@@ -6,13 +6,15 @@
 //! FMA and portable (SSE2 / NEON); which one runs is chosen at run time
 //! from the CPU (`SimdLevel`, overridable with `SNELL_SIMD`). Leaves refer to triangles by index into
 //! their mesh (whose vertex and index buffers the BVH shares, see
-//! `mesh::Shared`: no copy of the geometry); a leaf's triangles are gathered
-//! eight at a time into SoA registers and tested at once by a SIMD
-//! Möller–Trumbore. Spheres and disks are tested one by one.
+//! `mesh::Shared`). A leaf's triangles are tested eight at a time by a SIMD
+//! Möller–Trumbore, from packets stored ready in SoA form (BVHs up to
+//! `PACKED_MAX_TRIANGLES` triangles), or, for bigger ones, gathered from
+//! the mesh at each visit (no copy of the geometry, 55 % slower on the
+//! Cornell box). Spheres and disks are tested one by one.
 //!
 //! Memory per triangle: 8 bytes of reference, plus about 16 of nodes and
-//! leaves; the mesh itself holds the vertices (12 bytes per vertex) and
-//! indices (12 per triangle).
+//! leaves, plus 36 per packet lane when packets are kept; the mesh itself
+//! holds the vertices (12 bytes per vertex) and indices (12 per triangle).
 //!
 //! Instancing (Mitsuba's `shapegroup` + `instance`) makes it two-level:
 //! each shape group gets its own BVH, built once, and each instance is one
@@ -103,11 +105,14 @@ struct Node {
 const LEAF: u32 = 1 << 31;
 
 
-/// A leaf: triangles `tris[tri_start..tri_end]`, then `others[other_start..other_end]`.
+/// A leaf: triangles `tris[tri_start..tri_end]` (when the BVH keeps packets,
+/// also `packets[packet_start..]`, one per `PACKET` of them), then
+/// `others[other_start..other_end]`.
 #[derive(Clone, Copy, Debug)]
 struct Leaf {
     tri_start: u32,
     tri_end: u32,
+    packet_start: u32,
     other_start: u32,
     other_end: u32,
 }
@@ -139,6 +144,53 @@ struct TriPacket<V> {
     ng: [V; 3],
 }
 
+/// `PACKET` triangles of a leaf stored ready for the test (SoA, one lane
+/// each): v0, −e1 = v0 − v1 and e2 = v2 − v0, each x, y, z. The normal
+/// e2 × e1 is recomputed at test time (cheaper than loading it). Unused
+/// lanes are zero. 36 bytes per lane, the price of not gathering the
+/// vertices at every leaf visit (see `PACKED_MAX_TRIANGLES`).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+struct StoredPacket {
+    f: [[f32; PACKET]; 9],
+}
+
+/// BVHs over at most this many triangles keep their leaves' triangles as
+/// `StoredPacket`s; larger ones gather them from the mesh at every leaf
+/// visit. Measured on the Cornell box (AVX-512, 2 threads): gathering costs
+/// 55 % more CPU time per sample, since the vertices are scattered to the
+/// stack lane by lane and read back as vectors; the packets cost about 36–60
+/// bytes per triangle (36 per lane, leaves are not always full), which
+/// only matters for big meshes. `SNELL_TRIANGLES=packed|indexed` forces one
+/// (for tests and measurements).
+pub const PACKED_MAX_TRIANGLES: u64 = 1 << 21;
+
+/// Whether a BVH over `n_tris` triangles keeps packets.
+fn keeps_packets(n_tris: u64) -> bool {
+    static FORCED: std::sync::OnceLock<Option<bool>> = std::sync::OnceLock::new();
+    let forced = FORCED.get_or_init(|| match std::env::var("SNELL_TRIANGLES").as_deref().map(str::trim) {
+        Ok("packed") => Some(true),
+        Ok("indexed") => Some(false),
+        Ok(other) => {
+            eprintln!("warning: SNELL_TRIANGLES={other:?} is not one of packed, indexed; choosing by size");
+            None
+        }
+        Err(_) => None,
+    });
+    forced.unwrap_or(n_tris <= PACKED_MAX_TRIANGLES)
+}
+
+impl<V: Lanes> TriPacket<V> {
+    /// The packet of vertex v0 and edges −e1 and e2; the normal e2 × e1 is
+    /// computed product by product as the scalar cross product rounds
+    /// (with e1 = −(−e1), exactly).
+    #[inline(always)]
+    fn new(v0: [V; 3], e1n: [V; 3], e2: [V; 3]) -> TriPacket<V> {
+        let ng = [e2[2] * e1n[1] - e2[1] * e1n[2], e2[0] * e1n[2] - e2[2] * e1n[0], e2[1] * e1n[0] - e2[0] * e1n[1]];
+        TriPacket { v0, e1n, e2, ng }
+    }
+}
+
 /// Leaves hold at most this many primitives.
 const MAX_LEAF: usize = PACKET;
 /// Traversal stack capacity; the build bounds tree depth well below it.
@@ -149,6 +201,9 @@ pub struct Accel {
     nodes: Vec<Node>,
     leaves: Vec<Leaf>,
     tris: Vec<TriRef>,
+    /// Leaf triangles ready for the test; empty when they are gathered
+    /// from `meshes` instead (`keeps_packets`).
+    packets: Vec<StoredPacket>,
     meshes: Vec<MeshRef>,
     others: Vec<PrimGeom>,
     other_refs: Vec<PrimRef>,
@@ -412,6 +467,7 @@ impl Accel {
             nodes: vec![],
             leaves: vec![],
             tris: vec![],
+            packets: vec![],
             meshes,
             others: vec![],
             other_refs: vec![],
@@ -431,13 +487,15 @@ impl Accel {
         accel.tris.reserve_exact(n_tris as usize);
         accel.leaves.reserve_exact(n_leaves);
         accel.nodes.reserve_exact(n_leaves);
-        let mut c = Collapse { bvh2: &bvh2, mesh_first: &mesh_first, others: &others, other_refs: &other_refs, accel: &mut accel, max_depth: 0 };
+        let packed = keeps_packets(n_tris);
+        let mut c = Collapse { bvh2: &bvh2, mesh_first: &mesh_first, others: &others, other_refs: &other_refs, accel: &mut accel, max_depth: 0, packed };
         c.node(0, 1);
         assert!((WIDTH as u32 - 1) * c.max_depth + 1 < STACK as u32, "BVH too deep for the traversal stack");
         drop(bvh2);
         accel.nodes.shrink_to_fit();
         accel.leaves.shrink_to_fit();
         accel.tris.shrink_to_fit();
+        accel.packets.shrink_to_fit();
         accel
     }
 
@@ -456,12 +514,34 @@ impl Accel {
             }
         }
         let [v0, v1, v2] = f.map(|c| c.map(V::from_array));
-        let e1 = [v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]];
         let e2 = [v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2]];
-        // e2 × e1, product by product as the scalar cross product rounds.
-        let ng = [e2[1] * e1[2] - e2[2] * e1[1], e2[2] * e1[0] - e2[0] * e1[2], e2[0] * e1[1] - e2[1] * e1[0]];
         let e1n = [v0[0] - v1[0], v0[1] - v1[1], v0[2] - v1[2]];
-        TriPacket { v0, e1n, e2, ng }
+        TriPacket::new(v0, e1n, e2)
+    }
+
+    /// The triangles of chunk `k` of `leaf`: loaded from the stored packets,
+    /// or gathered from the meshes.
+    #[inline(always)]
+    fn packet<V: Lanes>(&self, leaf: &Leaf, k: usize, refs: &[TriRef]) -> TriPacket<V> {
+        if self.packets.is_empty() {
+            return self.gather(refs);
+        }
+        let p = &self.packets[leaf.packet_start as usize + k].f;
+        let l = |i: usize| V::load(&p[i]);
+        TriPacket::new([l(0), l(1), l(2)], [l(3), l(4), l(5)], [l(6), l(7), l(8)])
+    }
+
+    /// Drops the stored packets (also of the instanced groups): the traversal
+    /// gathers triangles from the meshes, as BVHs above
+    /// `PACKED_MAX_TRIANGLES` do (for tests and measurements).
+    pub fn gather_triangles(&mut self) {
+        self.packets = vec![];
+        self.groups.iter_mut().for_each(Accel::gather_triangles);
+    }
+
+    /// Whether leaf triangles are stored as packets (else gathered).
+    pub fn keeps_packets(&self) -> bool {
+        !self.packets.is_empty()
     }
 
     /// Instance `i` of a hit (`Hit::instance`).
@@ -486,6 +566,7 @@ impl Accel {
         self.nodes.capacity() * size_of::<Node>()
             + self.leaves.capacity() * size_of::<Leaf>()
             + self.tris.capacity() * size_of::<TriRef>()
+            + self.packets.capacity() * size_of::<StoredPacket>()
             + self.meshes.capacity() * size_of::<MeshRef>()
             + self.meshes.iter().map(|m| m.positions.len() * size_of::<Vec3>() + m.triangles.len() * size_of::<[u32; 3]>()).sum::<usize>()
             + self.others.capacity() * size_of::<PrimGeom>()
@@ -632,8 +713,8 @@ impl Accel {
                 }
             } else {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
-                for refs in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET) {
-                    let ([t, u, v, adet], mut mask) = r.triangles(&self.gather::<V>(refs), tmax);
+                for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
+                    let ([t, u, v, adet], mut mask) = r.triangles(&self.packet::<V>(leaf, k, refs), tmax);
                     if mask != 0 {
                         // The deferred division, only for packets with a hit.
                         let inv = V::splat(1.0) / adet;
@@ -720,8 +801,8 @@ impl Accel {
                 }
             } else {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
-                for refs in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET) {
-                    if r.triangles(&self.gather::<V>(refs), tmax).1 != 0 {
+                for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
+                    if r.triangles(&self.packet::<V>(leaf, k, refs), tmax).1 != 0 {
                         return true;
                     }
                 }
@@ -762,6 +843,8 @@ struct Collapse<'a> {
     other_refs: &'a [PrimRef],
     accel: &'a mut Accel,
     max_depth: u32,
+    /// Whether leaves store their triangles as packets.
+    packed: bool,
 }
 
 impl Collapse<'_> {
@@ -781,7 +864,24 @@ impl Collapse<'_> {
             a.others.push(self.others[i].clone());
             a.other_refs.push(self.other_refs[i]);
         }
-        a.leaves.push(Leaf { tri_start, tri_end: a.tris.len() as u32, other_start, other_end: a.others.len() as u32 });
+        let packet_start = a.packets.len() as u32;
+        if self.packed {
+            for refs in a.tris[tri_start as usize..].chunks(PACKET) {
+                let mut f = [[0.0f32; PACKET]; 9];
+                for (lane, r) in refs.iter().enumerate() {
+                    let m = &a.meshes[r.mesh as usize];
+                    let [i0, i1, i2] = m.triangles[r.prim as usize];
+                    let (v0, v1, v2) = (m.positions[i0 as usize], m.positions[i1 as usize], m.positions[i2 as usize]);
+                    // The same subtractions `gather` does, so hits are identical.
+                    let (e1n, e2) = (v0 - v1, v2 - v0);
+                    for (row, x) in [v0, e1n, e2].iter().flat_map(|v| v.to_array()).enumerate() {
+                        f[row][lane] = x;
+                    }
+                }
+                a.packets.push(StoredPacket { f });
+            }
+        }
+        a.leaves.push(Leaf { tri_start, tri_end: a.tris.len() as u32, packet_start, other_start, other_end: a.others.len() as u32 });
         LEAF | (a.leaves.len() as u32 - 1)
     }
 
@@ -1063,6 +1163,49 @@ mod tests {
                 assert_eq!(a.occluded(&ray), b.occluded(&ray));
             }
         }
+    }
+
+    /// Stored packets and triangles gathered from the meshes give
+    /// bit-identical hits and occlusion at every level this CPU runs
+    /// (meshes with degenerate triangles, instanced groups, spheres).
+    #[test]
+    fn stored_packets_equal_gathered_triangles() {
+        let mut rng = Pcg32::new(17, 9);
+        let mut shapes = vec![];
+        for k in 0..3 {
+            let centre = Vec3::new(k as f32 - 1.0, 0.2 * k as f32, 0.0);
+            shapes.push(shape(ShapeGeometry::Mesh(random_mesh(&mut rng, 300 + 100 * k, centre))));
+            shapes.push(shape(ShapeGeometry::Sphere(Sphere { center: centre + Vec3::Z, radius: 0.25, to_object: Transform::IDENTITY, flip_normals: false })));
+        }
+        let instances: Vec<(Transform, u32)> = (0..4)
+            .map(|i| (Transform::from_matrix(Mat4::from_translation(Vec3::new(0.0, i as f32 - 1.5, 1.5)) * Mat4::from_rotation_y(i as f32)).unwrap(), 0))
+            .collect();
+        let packed = Accel::build_instanced(&shapes, &[0, 1, 3], &[vec![2, 4, 5]], &instances);
+        assert!(packed.keeps_packets() && packed.groups[0].keeps_packets(), "small BVHs keep packets");
+        let mut gathered = Accel::build_instanced(&shapes, &[0, 1, 3], &[vec![2, 4, 5]], &instances);
+        gathered.gather_triangles();
+        assert!(!gathered.keeps_packets() && !gathered.groups[0].keeps_packets());
+        assert!(packed.memory_bytes() > gathered.memory_bytes());
+        let key = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.bary.0.to_bits(), h.bary.1.to_bits(), h.shape, h.prim, h.instance));
+        let (mut hits, mut occluded) = (0, 0);
+        for level in SimdLevel::ALL.into_iter().filter(|l| l.supported()) {
+            let (mut a, mut b) = (Accel::build_instanced(&shapes, &[0, 1, 3], &[vec![2, 4, 5]], &instances), Accel::build_instanced(&shapes, &[0, 1, 3], &[vec![2, 4, 5]], &instances));
+            b.gather_triangles();
+            a.set_simd_level(level);
+            b.set_simd_level(level);
+            for i in 0..4000 {
+                let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 6.0 - 3.0;
+                let d = square_to_uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
+                let ray = Ray { o, d, tmax: if i % 3 == 0 { rng.next_f32() * 4.0 } else { f32::INFINITY } };
+                let h = a.intersect(&ray);
+                hits += h.is_some() as usize;
+                assert_eq!(key(h), key(b.intersect(&ray)), "{level:?}, ray {i}");
+                let occ = a.occluded(&ray);
+                occluded += occ as usize;
+                assert_eq!(occ, b.occluded(&ray), "{level:?}, ray {i}");
+            }
+        }
+        assert!(hits > 1000 && occluded == hits, "{hits} hits, {occluded} occluded");
     }
 
     /// A mesh of more triangles than one build thread takes, so the two
