@@ -7,13 +7,13 @@
 //! from the CPU (`SimdLevel`, overridable with `SNELL_SIMD`). Leaves refer to triangles by index into
 //! their mesh (whose vertex and index buffers the BVH shares, see
 //! `mesh::Shared`). A leaf's triangles are tested eight at a time by a SIMD
-//! Möller–Trumbore, from packets stored ready in SoA form (BVHs up to
+//! Möller–Trumbore, from lanes stored ready in SoA form (BVHs up to
 //! `PACKED_MAX_TRIANGLES` triangles), or, for bigger ones, gathered from
-//! the mesh at each visit (no copy of the geometry, 55 % slower on the
+//! the mesh at each visit (no copy of the geometry, 45 % slower on the
 //! Cornell box). Spheres and disks are tested one by one.
 //!
 //! Memory per triangle: 8 bytes of reference, plus about 16 of nodes and
-//! leaves, plus 36 per packet lane when packets are kept; the mesh itself
+//! leaves, plus 36 when the triangles are kept as lanes; the mesh itself
 //! holds the vertices (12 bytes per vertex) and indices (12 per triangle).
 //!
 //! Instancing (Mitsuba's `shapegroup` + `instance`) makes it two-level:
@@ -105,14 +105,12 @@ struct Node {
 const LEAF: u32 = 1 << 31;
 
 
-/// A leaf: triangles `tris[tri_start..tri_end]` (when the BVH keeps packets,
-/// also `packets[packet_start..]`, one per `PACKET` of them), then
-/// `others[other_start..other_end]`.
+/// A leaf: triangles `tris[tri_start..tri_end]` (and the same lanes of
+/// `Accel::lanes` when the BVH keeps them), then `others[other_start..other_end]`.
 #[derive(Clone, Copy, Debug)]
 struct Leaf {
     tri_start: u32,
     tri_end: u32,
-    packet_start: u32,
     other_start: u32,
     other_end: u32,
 }
@@ -144,24 +142,25 @@ struct TriPacket<V> {
     ng: [V; 3],
 }
 
-/// `PACKET` triangles of a leaf stored ready for the test (SoA, one lane
-/// each): v0, −e1 = v0 − v1 and e2 = v2 − v0, each x, y, z. The normal
-/// e2 × e1 is recomputed at test time (cheaper than loading it). Unused
-/// lanes are zero. 36 bytes per lane, the price of not gathering the
-/// vertices at every leaf visit (see `PACKED_MAX_TRIANGLES`).
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(32))]
-struct StoredPacket {
-    f: [[f32; PACKET]; 9],
+/// The triangles of every leaf stored ready for the test, in the order of
+/// `Accel::tris`, as nine SoA rows (v0, −e1 = v0 − v1, e2 = v2 − v0, each
+/// x, y, z) of `stride` floats: a leaf's chunk of up to `PACKET` triangles
+/// is one unaligned load per row, and lanes past the chunk (the next leaf's
+/// triangles, or zero padding at the end) are masked out of the hits. The
+/// normal e2 × e1 is recomputed at test time (cheaper than loading it).
+/// 36 bytes per triangle, whatever the leaves' fill.
+#[derive(Clone, Debug, Default)]
+struct TriLanes {
+    stride: usize,
+    f: Vec<f32>,
 }
 
 /// BVHs over at most this many triangles keep their leaves' triangles as
-/// `StoredPacket`s; larger ones gather them from the mesh at every leaf
-/// visit. Measured on the Cornell box (AVX-512, 2 threads): gathering costs
-/// 55 % more CPU time per sample, since the vertices are scattered to the
-/// stack lane by lane and read back as vectors; the packets cost about 36–60
-/// bytes per triangle (36 per lane, leaves are not always full), which
-/// only matters for big meshes. `SNELL_TRIANGLES=packed|indexed` forces one
+/// `TriLanes`; larger ones gather them from the mesh at every leaf visit.
+/// Measured on the Cornell box (AVX-512, 2 threads): gathering costs 45 %
+/// more CPU time per sample, since the vertices are scattered to the stack
+/// lane by lane and read back as vectors; the lanes cost 36 bytes per
+/// triangle, which only matters for big meshes. `SNELL_TRIANGLES=packed|indexed` forces one
 /// (for tests and measurements).
 pub const PACKED_MAX_TRIANGLES: u64 = 1 << 21;
 
@@ -191,6 +190,12 @@ impl<V: Lanes> TriPacket<V> {
     }
 }
 
+/// The hit mask of the first `n` lanes.
+#[inline(always)]
+fn lanes_of(n: usize) -> u32 {
+    (1u32 << n) - 1
+}
+
 /// Leaves hold at most this many primitives.
 const MAX_LEAF: usize = PACKET;
 /// Traversal stack capacity; the build bounds tree depth well below it.
@@ -203,7 +208,7 @@ pub struct Accel {
     tris: Vec<TriRef>,
     /// Leaf triangles ready for the test; empty when they are gathered
     /// from `meshes` instead (`keeps_packets`).
-    packets: Vec<StoredPacket>,
+    lanes: TriLanes,
     meshes: Vec<MeshRef>,
     others: Vec<PrimGeom>,
     other_refs: Vec<PrimRef>,
@@ -467,7 +472,7 @@ impl Accel {
             nodes: vec![],
             leaves: vec![],
             tris: vec![],
-            packets: vec![],
+            lanes: TriLanes::default(),
             meshes,
             others: vec![],
             other_refs: vec![],
@@ -487,16 +492,34 @@ impl Accel {
         accel.tris.reserve_exact(n_tris as usize);
         accel.leaves.reserve_exact(n_leaves);
         accel.nodes.reserve_exact(n_leaves);
-        let packed = keeps_packets(n_tris);
-        let mut c = Collapse { bvh2: &bvh2, mesh_first: &mesh_first, others: &others, other_refs: &other_refs, accel: &mut accel, max_depth: 0, packed };
+        let mut c = Collapse { bvh2: &bvh2, mesh_first: &mesh_first, others: &others, other_refs: &other_refs, accel: &mut accel, max_depth: 0 };
         c.node(0, 1);
         assert!((WIDTH as u32 - 1) * c.max_depth + 1 < STACK as u32, "BVH too deep for the traversal stack");
         drop(bvh2);
         accel.nodes.shrink_to_fit();
         accel.leaves.shrink_to_fit();
         accel.tris.shrink_to_fit();
-        accel.packets.shrink_to_fit();
+        if n_tris > 0 && keeps_packets(n_tris) {
+            accel.store_lanes();
+        }
         accel
+    }
+
+    /// Fills `lanes` from the meshes, in the order of `tris`.
+    fn store_lanes(&mut self) {
+        let stride = self.tris.len() + PACKET;
+        let mut f = vec![0.0f32; 9 * stride];
+        for (i, r) in self.tris.iter().enumerate() {
+            let m = &self.meshes[r.mesh as usize];
+            let [i0, i1, i2] = m.triangles[r.prim as usize];
+            let (v0, v1, v2) = (m.positions[i0 as usize], m.positions[i1 as usize], m.positions[i2 as usize]);
+            // The same subtractions `gather` does, so hits are identical.
+            let (e1n, e2) = (v0 - v1, v2 - v0);
+            for (row, x) in [v0, e1n, e2].iter().flat_map(|v| v.to_array()).enumerate() {
+                f[row * stride + i] = x;
+            }
+        }
+        self.lanes = TriLanes { stride, f };
     }
 
     /// The triangles `refs` (at most `PACKET`) gathered from their meshes.
@@ -519,15 +542,21 @@ impl Accel {
         TriPacket::new(v0, e1n, e2)
     }
 
-    /// The triangles of chunk `k` of `leaf`: loaded from the stored packets,
-    /// or gathered from the meshes.
+    /// The triangles `refs`, which are `tris[first..]`: loaded from the
+    /// stored lanes, or gathered from the meshes. Lanes past `refs.len()`
+    /// hold other triangles or zeros: callers mask them out.
     #[inline(always)]
-    fn packet<V: Lanes>(&self, leaf: &Leaf, k: usize, refs: &[TriRef]) -> TriPacket<V> {
-        if self.packets.is_empty() {
+    fn packet<V: Lanes>(&self, first: usize, refs: &[TriRef]) -> TriPacket<V> {
+        let TriLanes { stride, f } = &self.lanes;
+        if f.is_empty() {
             return self.gather(refs);
         }
-        let p = &self.packets[leaf.packet_start as usize + k].f;
-        let l = |i: usize| V::load(&p[i]);
+        debug_assert!(first + PACKET <= *stride && f.len() == 9 * stride);
+        let l = |row: usize| {
+            // SAFETY: `first` < tris.len() and each row holds `stride` =
+            // tris.len() + PACKET floats, so the 8 read are inside `f`.
+            V::load(unsafe { &*(f.as_ptr().add(row * stride + first) as *const [f32; PACKET]) })
+        };
         TriPacket::new([l(0), l(1), l(2)], [l(3), l(4), l(5)], [l(6), l(7), l(8)])
     }
 
@@ -535,13 +564,13 @@ impl Accel {
     /// gathers triangles from the meshes, as BVHs above
     /// `PACKED_MAX_TRIANGLES` do (for tests and measurements).
     pub fn gather_triangles(&mut self) {
-        self.packets = vec![];
+        self.lanes = TriLanes::default();
         self.groups.iter_mut().for_each(Accel::gather_triangles);
     }
 
     /// Whether leaf triangles are stored as packets (else gathered).
     pub fn keeps_packets(&self) -> bool {
-        !self.packets.is_empty()
+        !self.lanes.f.is_empty()
     }
 
     /// Instance `i` of a hit (`Hit::instance`).
@@ -566,7 +595,7 @@ impl Accel {
         self.nodes.capacity() * size_of::<Node>()
             + self.leaves.capacity() * size_of::<Leaf>()
             + self.tris.capacity() * size_of::<TriRef>()
-            + self.packets.capacity() * size_of::<StoredPacket>()
+            + self.lanes.f.capacity() * size_of::<f32>()
             + self.meshes.capacity() * size_of::<MeshRef>()
             + self.meshes.iter().map(|m| m.positions.len() * size_of::<Vec3>() + m.triangles.len() * size_of::<[u32; 3]>()).sum::<usize>()
             + self.others.capacity() * size_of::<PrimGeom>()
@@ -714,7 +743,9 @@ impl Accel {
             } else {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
                 for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
-                    let ([t, u, v, adet], mut mask) = r.triangles(&self.packet::<V>(leaf, k, refs), tmax);
+                    let first = leaf.tri_start as usize + k * PACKET;
+                    let ([t, u, v, adet], mask) = r.triangles(&self.packet::<V>(first, refs), tmax);
+                    let mut mask = mask & lanes_of(refs.len());
                     if mask != 0 {
                         // The deferred division, only for packets with a hit.
                         let inv = V::splat(1.0) / adet;
@@ -802,7 +833,8 @@ impl Accel {
             } else {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
                 for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
-                    if r.triangles(&self.packet::<V>(leaf, k, refs), tmax).1 != 0 {
+                    let first = leaf.tri_start as usize + k * PACKET;
+                    if r.triangles(&self.packet::<V>(first, refs), tmax).1 & lanes_of(refs.len()) != 0 {
                         return true;
                     }
                 }
@@ -843,8 +875,6 @@ struct Collapse<'a> {
     other_refs: &'a [PrimRef],
     accel: &'a mut Accel,
     max_depth: u32,
-    /// Whether leaves store their triangles as packets.
-    packed: bool,
 }
 
 impl Collapse<'_> {
@@ -864,24 +894,7 @@ impl Collapse<'_> {
             a.others.push(self.others[i].clone());
             a.other_refs.push(self.other_refs[i]);
         }
-        let packet_start = a.packets.len() as u32;
-        if self.packed {
-            for refs in a.tris[tri_start as usize..].chunks(PACKET) {
-                let mut f = [[0.0f32; PACKET]; 9];
-                for (lane, r) in refs.iter().enumerate() {
-                    let m = &a.meshes[r.mesh as usize];
-                    let [i0, i1, i2] = m.triangles[r.prim as usize];
-                    let (v0, v1, v2) = (m.positions[i0 as usize], m.positions[i1 as usize], m.positions[i2 as usize]);
-                    // The same subtractions `gather` does, so hits are identical.
-                    let (e1n, e2) = (v0 - v1, v2 - v0);
-                    for (row, x) in [v0, e1n, e2].iter().flat_map(|v| v.to_array()).enumerate() {
-                        f[row][lane] = x;
-                    }
-                }
-                a.packets.push(StoredPacket { f });
-            }
-        }
-        a.leaves.push(Leaf { tri_start, tri_end: a.tris.len() as u32, packet_start, other_start, other_end: a.others.len() as u32 });
+        a.leaves.push(Leaf { tri_start, tri_end: a.tris.len() as u32, other_start, other_end: a.others.len() as u32 });
         LEAF | (a.leaves.len() as u32 - 1)
     }
 
