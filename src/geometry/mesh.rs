@@ -59,10 +59,18 @@ pub struct Mesh {
     /// Mesh attributes by name (`vertex_color`, `face_weight`, …); vertex
     /// attributes stored per triangle corner (see `Attribute::to_corners`).
     pub attributes: Vec<(String, Arc<Attribute>)>,
-    /// Unit geometric normal per triangle (flip applied), precomputed
-    /// because every hit and every emitter sample needs it.
+    /// Unit geometric normal per triangle (flip applied), kept only for
+    /// meshes of at most [`STORED_NORMALS_MAX`] triangles (empty otherwise):
+    /// a small mesh's normals cost little memory and save a normalisation
+    /// per hit; a large mesh's are computed at the hit from the edges the
+    /// hit already has (12 bytes per triangle saved).
     face_normals: Vec<Vec3>,
-    area_distribution: DiscreteDistribution,
+    /// Total surface area.
+    area: f32,
+    /// Triangles by area, for `sample_position`; made on first use (only
+    /// emitters sample positions: other meshes save its 4 bytes per
+    /// triangle).
+    area_distribution: std::sync::OnceLock<DiscreteDistribution>,
 }
 
 /// A point drawn on a shape's surface.
@@ -105,6 +113,10 @@ pub fn area_pdf_to_solid_angle(p: Vec3, hit: Vec3, n: Vec3, area: f32) -> f32 {
     if cos <= 1e-7 || area <= 0.0 { 0.0 } else { dist2 / (cos * area) }
 }
 
+/// Meshes with at most this many triangles store their face normals
+/// (at most 768 KiB each).
+pub const STORED_NORMALS_MAX: usize = 1 << 16;
+
 impl Mesh {
     /// Builds a mesh from world-space data. Indices must be in range (the
     /// loaders check this with a located error before calling).
@@ -123,6 +135,7 @@ impl Mesh {
             flip_normals,
             attributes: vec![],
             face_normals: vec![],
+            area: 0.0,
             area_distribution: Default::default(),
         };
         if let Some(ns) = &mut mesh.normals {
@@ -133,18 +146,17 @@ impl Mesh {
                 }
             }
         }
-        use rayon::prelude::*;
-        mesh.face_normals = (0..mesh.triangles.len())
-            .into_par_iter()
-            .map(|i| {
-                let [a, b, c] = mesh.vertices(i);
-                let n = (b - a).cross(c - a).normalize_or_zero();
-                if flip_normals { -n } else { n }
-            })
-            .collect();
-        let areas: Vec<f32> = (0..mesh.triangles.len()).into_par_iter().map(|i| mesh.triangle_area(i)).collect();
-        mesh.area_distribution = DiscreteDistribution::new(areas);
+        if mesh.triangles.len() <= STORED_NORMALS_MAX {
+            mesh.face_normals = (0..mesh.triangles.len()).map(|i| mesh.face_normal(i)).collect();
+        }
+        // Summed as `DiscreteDistribution` sums (in f64, in order), so that
+        // `area()` equals the distribution's sum bit for bit.
+        mesh.area = (0..mesh.triangles.len()).fold(0.0f64, |acc, i| acc + mesh.triangle_area(i).max(0.0) as f64) as f32;
         mesh
+    }
+
+    fn area_distribution(&self) -> &DiscreteDistribution {
+        self.area_distribution.get_or_init(|| DiscreteDistribution::new((0..self.triangles.len()).map(|i| self.triangle_area(i))))
     }
 
     pub fn vertices(&self, i: usize) -> [Vec3; 3] {
@@ -158,13 +170,36 @@ impl Mesh {
     }
 
     pub fn area(&self) -> f32 {
-        self.area_distribution.sum()
+        self.area
     }
 
-    /// Geometric normal of triangle `i` (orientation from the winding).
+    /// Unit geometric normal of triangle `i` (orientation from the winding,
+    /// flip applied). Computed on each call rather than stored: 12 bytes
+    /// per triangle saved for a cross product and a normalisation per hit.
     #[inline]
     pub fn face_normal(&self, i: usize) -> Vec3 {
-        self.face_normals[i]
+        let [a, b, c] = self.vertices(i);
+        self.face_normal_from_edges(b - a, c - a)
+    }
+
+    /// [`Mesh::face_normal`] from the edges e1 = b − a and e2 = c − a that
+    /// the caller already has (a hit, a position sample): no second read of
+    /// the vertices; the same arithmetic, so the same bits.
+    #[inline(always)]
+    pub fn face_normal_from_edges(&self, e1: Vec3, e2: Vec3) -> Vec3 {
+        let n = e1.cross(e2).normalize_or_zero();
+        if self.flip_normals { -n } else { n }
+    }
+
+    /// The normal of triangle `i`, whose edges are `e1` and `e2`: the
+    /// stored one of a small mesh, else computed from the edges (the same
+    /// bits either way).
+    #[inline(always)]
+    pub fn face_normal_at(&self, i: usize, e1: Vec3, e2: Vec3) -> Vec3 {
+        match self.face_normals.get(i) {
+            Some(&n) => n,
+            None => self.face_normal_from_edges(e1, e2),
+        }
     }
 
     /// ∂p/∂u of triangle `i` from its texture coordinates; `None` without
@@ -219,14 +254,14 @@ impl Mesh {
 
     /// Uniform by area over the whole mesh.
     pub fn sample_position(&self, u: Vec2) -> Option<PositionSample> {
-        if self.area_distribution.is_empty() || self.area() <= 0.0 {
+        if self.triangles.is_empty() || self.area() <= 0.0 {
             return None;
         }
-        let (i, ux) = self.area_distribution.sample_reuse(u.x);
+        let (i, ux) = self.area_distribution().sample_reuse(u.x);
         let b = square_to_uniform_triangle(Vec2::new(ux, u.y));
         let [a, bb, c] = self.vertices(i);
         let p = a * (1.0 - b.x - b.y) + bb * b.x + c * b.y;
-        let n = self.face_normal(i);
+        let n = self.face_normal_at(i, bb - a, c - a);
         let sh_n = match self.normals {
             Some(_) => self.shading(i, b.x, b.y, n).0,
             None => n,
@@ -344,6 +379,38 @@ mod tests {
             let [a, b, c] = m.vertices(i);
             let centre = (a + b + c) / 3.0;
             assert!(m.face_normal(i).dot(centre) > 0.0, "face {i} points inwards");
+        }
+    }
+
+    /// A large mesh computes its face normals at the hit, a small one
+    /// stores them: the same bits, flipped or not.
+    #[test]
+    fn stored_and_computed_face_normals_agree() {
+        let n = STORED_NORMALS_MAX / 2 + 1; // 2n triangles: past the limit
+        let mut positions = vec![];
+        let mut triangles = vec![];
+        for k in 0..=n {
+            let x = k as f32 * 0.37;
+            positions.push(Vec3::new(x, (x * 1.3).sin(), 0.2 * x.cos()));
+            positions.push(Vec3::new(x + 0.11, 1.0 + (x * 0.7).cos(), 0.5 + 0.1 * x.sin()));
+        }
+        for k in 0..n as u32 {
+            triangles.push([2 * k, 2 * k + 2, 2 * k + 1]);
+            triangles.push([2 * k + 1, 2 * k + 2, 2 * k + 3]);
+        }
+        for flip in [false, true] {
+            let big = Mesh::new(positions.clone(), None, None, triangles.clone(), flip);
+            assert!(big.triangles.len() > STORED_NORMALS_MAX && big.face_normals.is_empty());
+            for i in (0..big.triangles.len()).step_by(997) {
+                let small = Mesh::new(big.vertices(i).to_vec(), None, None, vec![[0, 1, 2]], flip);
+                assert_eq!(small.face_normals.len(), 1);
+                let [a, b, c] = big.vertices(i);
+                let computed = big.face_normal_at(i, b - a, c - a);
+                assert_eq!(computed.to_array().map(f32::to_bits), small.face_normal_at(0, Vec3::ZERO, Vec3::ZERO).to_array().map(f32::to_bits));
+                assert!((computed.length() - 1.0).abs() < 1e-5);
+                let p = big.sample_position(Vec2::new(0.3, 0.6)).map(|s| s.n.length());
+                assert!(p.is_some_and(|l| (l - 1.0).abs() < 1e-5));
+            }
         }
     }
 

@@ -125,27 +125,38 @@ impl RawMesh {
 /// `vt`, `vn` and `f` (groups, materials, lines, points) are ignored.
 pub fn read_obj(path: &Path) -> Result<RawMesh, String> {
     let bytes = std::fs::read(path).map_err(|e| format!("cannot read OBJ file {}: {e}", path.display()))?;
-    let text = String::from_utf8_lossy(&bytes);
-    parse_obj(&text).map_err(|(line, e)| format!("cannot read OBJ file {}:{line}: {e}", path.display()))
+    let chunks = parse_obj_chunks(&String::from_utf8_lossy(&bytes));
+    // The file's bytes are not needed past the parse: free them before
+    // the mesh is assembled (lower peak memory).
+    drop(bytes);
+    chunks.and_then(assemble_obj).map_err(|(line, e)| format!("cannot read OBJ file {}:{line}: {e}", path.display()))
 }
 
 /// What one chunk of an OBJ file holds: its vertex data, its face corners
 /// as written (indices 1-based or negative, 0 where a texture coordinate or
-/// normal index is absent), where each face ends, its line (in the chunk)
-/// and the list sizes (in the chunk) when it was read.
+/// normal index is absent; the bits of an `i32`, resolved in place later to
+/// 0-based `u32` indices), where each face ends, its line (in the chunk)
+/// and the list sizes (in the chunk) when it was read. A chunk is about
+/// 1 MiB of text, so `u32` counts suffice (checked).
 #[derive(Default)]
 struct ObjChunk {
     positions: Vec<Vec3>,
     texcoords: Vec<Vec2>,
     normals: Vec<Vec3>,
-    corners: Vec<[i64; 3]>,
-    face_end: Vec<usize>,
-    face_line: Vec<usize>,
-    counts_at_face: Vec<[usize; 3]>,
+    corners: Vec<[u32; 3]>,
+    /// Indices that do not fit an `i32` (always out of bounds, kept for the
+    /// error message): (corner, slot, value); the corner holds `WIDE`.
+    wide: Vec<(usize, usize, i64)>,
+    face_end: Vec<u32>,
+    face_line: Vec<u32>,
+    counts_at_face: Vec<[u32; 3]>,
     all_uv: bool,
     all_n: bool,
     lines: usize,
 }
+
+/// A corner index stored in `ObjChunk::wide`.
+const WIDE: u32 = i32::MIN as u32;
 
 /// Parses `text` (whole lines); errors carry the line within it (1-based).
 fn parse_obj_chunk(text: &str) -> Result<ObjChunk, (usize, String)> {
@@ -204,15 +215,25 @@ fn parse_obj_chunk(text: &str) -> Result<ObjChunk, (usize, String)> {
                     }
                     c.all_uv &= vt.is_some();
                     c.all_n &= vn.is_some();
-                    c.corners.push([v, vt.unwrap_or(0), vn.unwrap_or(0)]);
+                    let k = c.corners.len();
+                    let mut narrow = |slot: usize, i: i64| match i32::try_from(i) {
+                        Ok(x) if x != i32::MIN => x as u32,
+                        _ => {
+                            c.wide.push((k, slot, i));
+                            WIDE
+                        }
+                    };
+                    let corner = [narrow(0, v), narrow(1, vt.unwrap_or(0)), narrow(2, vn.unwrap_or(0))];
+                    c.corners.push(corner);
                 }
                 let n = c.corners.len() - first;
                 if n < 3 {
                     return Err((line, format!("a face has {n} vertices; a face needs at least three")));
                 }
-                c.face_end.push(c.corners.len());
-                c.face_line.push(line);
-                c.counts_at_face.push([c.positions.len(), c.texcoords.len(), c.normals.len()]);
+                let narrow = |x: usize| u32::try_from(x).map_err(|_| (line, "too much data in one line of the OBJ file".to_string()));
+                c.face_end.push(narrow(c.corners.len())?);
+                c.face_line.push(narrow(line)?);
+                c.counts_at_face.push([narrow(c.positions.len())?, narrow(c.texcoords.len())?, narrow(c.normals.len())?]);
             }
             _ => {}
         }
@@ -225,6 +246,12 @@ fn parse_obj_chunk(text: &str) -> Result<ObjChunk, (usize, String)> {
 /// Large files are cut at line ends into pieces parsed in parallel; the
 /// result (and the first error, by line) is the same as reading it in one go.
 pub fn parse_obj(text: &str) -> Result<RawMesh, (usize, String)> {
+    parse_obj_chunks(text).and_then(assemble_obj)
+}
+
+/// The first half of [`parse_obj`]: the text's pieces parsed (in parallel),
+/// each with the number of lines before it.
+fn parse_obj_chunks(text: &str) -> Result<Vec<(usize, ObjChunk)>, (usize, String)> {
     use rayon::prelude::*;
     // Pieces of about 1 MiB, cut after a newline.
     const PIECE: usize = 1 << 20;
@@ -254,11 +281,19 @@ pub fn parse_obj(text: &str) -> Result<RawMesh, (usize, String)> {
             Err((line, e)) => return Err((line0 + line, e)),
         }
     }
-    let total = |f: fn(&ObjChunk) -> usize| chunks.iter().map(|(_, c)| f(c)).sum::<usize>();
-    let (n_pos, n_tex, n_nrm) = (total(|c| c.positions.len()), total(|c| c.texcoords.len()), total(|c| c.normals.len()));
     if chunks.iter().all(|(_, c)| c.face_end.is_empty()) {
         return Err((text.lines().count().max(1), "the mesh has no faces".into()));
     }
+    Ok(chunks)
+}
+
+/// The second half of [`parse_obj`]: indices resolved, vertices made
+/// distinct per (position, uv, normal) in use, polygons fanned.
+fn assemble_obj(mut chunks: Vec<(usize, ObjChunk)>) -> Result<RawMesh, (usize, String)> {
+    use rayon::prelude::*;
+    let total = |f: fn(&ObjChunk) -> usize| chunks.iter().map(|(_, c)| f(c)).sum::<usize>();
+    let (n_pos, n_tex, n_nrm) = (total(|c| c.positions.len()), total(|c| c.texcoords.len()), total(|c| c.normals.len()));
+    let n_tris = total(|c| c.corners.len()) - 2 * total(|c| c.face_end.len());
     let all_uv = chunks.iter().all(|(_, c)| c.all_uv);
     let all_n = chunks.iter().all(|(_, c)| c.all_n);
     // Resolve: positive indices against the whole file, negative ones
@@ -276,42 +311,54 @@ pub fn parse_obj(text: &str) -> Result<RawMesh, (usize, String)> {
         let c = &chunks[k - 1].1;
         before[k] = [before[k - 1][0] + c.positions.len(), before[k - 1][1] + c.texcoords.len(), before[k - 1][2] + c.normals.len()];
     }
-    let resolved: Vec<Result<Vec<[u32; 3]>, (usize, String)>> = chunks
-        .par_iter()
+    // Resolved in place: each corner becomes three 0-based indices.
+    let resolved: Vec<Result<(), (usize, String)>> = chunks
+        .par_iter_mut()
         .zip(&before)
         .map(|((line0, c), b)| {
-            let mut out = Vec::with_capacity(c.corners.len());
             let mut start = 0;
-            for ((&end, &line), counts) in c.face_end.iter().zip(&c.face_line).zip(&c.counts_at_face) {
-                let line = line0 + line;
-                for &[v, vt, vn] in &c.corners[start..end] {
+            let ObjChunk { corners, wide, face_end, face_line, counts_at_face, .. } = c;
+            for ((&end, &line), counts) in face_end.iter().zip(face_line.iter()).zip(counts_at_face.iter()) {
+                let line = *line0 + line as usize;
+                let counts = counts.map(|x| x as usize);
+                for k in start..end as usize {
+                    let raw = |slot: usize| -> i64 {
+                        let x = corners[k][slot];
+                        if x == WIDE { wide.iter().find(|w| (w.0, w.1) == (k, slot)).map_or(i64::MIN, |w| w.2) } else { x as i32 as i64 }
+                    };
+                    let (v, vt, vn) = (raw(0), raw(1), raw(2));
                     let v = resolve(v, n_pos, b[0] + counts[0], "vertex", line)?;
                     let vt = if vt == 0 { u32::MAX } else { resolve(vt, n_tex, b[1] + counts[1], "texture coordinate", line)? };
                     let vn = if vn == 0 { u32::MAX } else { resolve(vn, n_nrm, b[2] + counts[2], "normal", line)? };
-                    out.push([v, if all_uv { vt } else { u32::MAX }, if all_n { vn } else { u32::MAX }]);
+                    corners[k] = [v, if all_uv { vt } else { u32::MAX }, if all_n { vn } else { u32::MAX }];
                 }
-                start = end;
+                start = end as usize;
             }
-            Ok(out)
+            *face_line = vec![];
+            *counts_at_face = vec![];
+            Ok(())
         })
         .collect();
-    let mut corner_lists = Vec::with_capacity(resolved.len());
     for r in resolved {
-        corner_lists.push(r?);
+        r?;
     }
-    let positions: Vec<Vec3> = chunks.iter().flat_map(|(_, c)| c.positions.iter().copied()).collect();
-    let texcoords: Vec<Vec2> = if all_uv { chunks.iter().flat_map(|(_, c)| c.texcoords.iter().copied()).collect() } else { vec![] };
-    let vnormals: Vec<Vec3> = if all_n { chunks.iter().flat_map(|(_, c)| c.normals.iter().copied()).collect() } else { vec![] };
+    // Each chunk's lists are freed as they are copied out.
+    let positions: Vec<Vec3> = chunks.iter_mut().flat_map(|(_, c)| std::mem::take(&mut c.positions)).collect();
+    let texcoords: Vec<Vec2> = if all_uv { chunks.iter_mut().flat_map(|(_, c)| std::mem::take(&mut c.texcoords)).collect() } else { vec![] };
+    let vnormals: Vec<Vec3> = if all_n { chunks.iter_mut().flat_map(|(_, c)| std::mem::take(&mut c.normals)).collect() } else { vec![] };
     // One vertex per distinct (position, uv, normal) in use, in order of first use.
     let mut out = RawMesh::default();
+    out.triangles.reserve_exact(n_tris);
     let mut uvs = vec![];
     let mut normals = vec![];
     let mut by_position = if all_uv || all_n { vec![] } else { vec![u32::MAX; n_pos] };
     let mut map: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
     let mut ids = vec![];
-    for ((_, c), corners) in chunks.iter().zip(&corner_lists) {
+    for (_, c) in chunks.iter_mut() {
+        let corners = std::mem::take(&mut c.corners);
         let mut start = 0;
         for &end in &c.face_end {
+            let end = end as usize;
             ids.clear();
             for &key in &corners[start..end] {
                 let [v, vt, vn] = key;

@@ -63,7 +63,7 @@ impl Shape {
                 let (b1, b2) = bary;
                 let (b1, b2) = if b1.is_finite() && b2.is_finite() { (b1.clamp(0.0, 1.0), b2.clamp(0.0, 1.0)) } else { (0.0, 0.0) };
                 let p = a + e1 * b1 + e2 * b2;
-                let n = m.face_normal(i);
+                let n = m.face_normal_at(i, e1, e2);
                 let (sh_n, uv) = m.shading(i, b1, b2, n);
                 (p, n, sh_n, uv, Vec2::new(b1, b2))
             }

@@ -89,7 +89,8 @@ pub struct DiscreteDistribution {
 
 impl DiscreteDistribution {
     pub fn new(weights: impl IntoIterator<Item = f32>) -> Self {
-        let mut cdf = Vec::new();
+        let weights = weights.into_iter();
+        let mut cdf = Vec::with_capacity(weights.size_hint().0);
         let mut acc = 0.0f64;
         for w in weights {
             acc += w.max(0.0) as f64;

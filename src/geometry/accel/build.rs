@@ -138,26 +138,62 @@ fn units(tris: usize, others: usize) -> f32 {
 
 /// A BVH over `items`; leaves hold at most `max_leaf` primitives.
 pub fn build(mut items: Vec<Item>, max_leaf: usize) -> Bvh2 {
-    let mut nodes = Vec::new();
+    // At most 2n − 1 nodes: reserved (untouched pages cost no memory) so
+    // that the vector never doubles and copies itself.
+    let mut nodes = Vec::with_capacity((2 * items.len()).saturating_sub(1));
     if !items.is_empty() {
-        build_rec(&mut items, 0, 0, max_leaf.max(1), &mut nodes);
+        let root = Summary::of(&items);
+        build_rec(&mut items, root, 0, 0, max_leaf.max(1), &mut nodes);
     }
     nodes.shrink_to_fit();
-    Bvh2 { nodes, order: items.iter().map(|it| it.id).collect() }
+    let order = items.iter().map(|it| it.id).collect();
+    drop(items);
+    Bvh2 { nodes, order }
 }
 
 struct Split {
     cost: f32,
     /// Items (in the partitioned order) that go left.
     left: usize,
+    /// The two sides' summaries when the split gathered them (the binned
+    /// split does, in its partition pass: no extra pass over the items).
+    sides: Option<[Summary; 2]>,
 }
 
-fn build_rec(items: &mut [Item], offset: usize, depth: u32, max_leaf: usize, nodes: &mut Vec<Node2>) -> u32 {
-    let id = nodes.len() as u32;
-    let (bounds, cbounds, tris) = items.iter().fold((Aabb::EMPTY, Aabb::EMPTY, 0), |(b, c, t), it| {
+/// What a node needs of its items: their bounds, the bounds of their
+/// centroids and how many are triangles.
+#[derive(Clone, Copy)]
+struct Summary {
+    bounds: Aabb,
+    cbounds: Aabb,
+    tris: usize,
+}
+
+impl Summary {
+    const EMPTY: Summary = Summary { bounds: Aabb::EMPTY, cbounds: Aabb::EMPTY, tris: 0 };
+
+    #[inline(always)]
+    fn add(&mut self, it: &Item) {
         let ib = it.bounds();
-        (b.union(ib), c.grow(ib.centroid()), t + it.tri() as usize)
-    });
+        self.bounds = self.bounds.union(ib);
+        self.cbounds = self.cbounds.grow(ib.centroid());
+        self.tris += it.tri() as usize;
+    }
+
+    fn of(items: &[Item]) -> Summary {
+        let mut s = Summary::EMPTY;
+        for it in items {
+            s.add(it);
+        }
+        s
+    }
+}
+
+/// Builds the node of `items`, whose summary is `sum` (min and max are
+/// exact, so a summary gathered in any order is the same bits).
+fn build_rec(items: &mut [Item], sum: Summary, offset: usize, depth: u32, max_leaf: usize, nodes: &mut Vec<Node2>) -> u32 {
+    let id = nodes.len() as u32;
+    let Summary { bounds, cbounds, tris } = sum;
     let n = items.len();
     nodes.push(Node2::new(bounds, offset as u32, 0, n as u32));
     if n <= 1 {
@@ -172,8 +208,12 @@ fn build_rec(items: &mut [Item], offset: usize, depth: u32, max_leaf: usize, nod
     } else {
         binned_split(items, bounds.half_area(), cbounds)
     };
+    let mut sides = None;
     let left = match split {
-        Some(s) if n > max_leaf || s.cost < leaf_cost => s.left,
+        Some(s) if n > max_leaf || s.cost < leaf_cost => {
+            sides = s.sides;
+            s.left
+        }
         Some(_) => return id,
         None if n <= max_leaf => return id,
         None => {
@@ -186,15 +226,16 @@ fn build_rec(items: &mut [Item], offset: usize, depth: u32, max_leaf: usize, nod
         }
     };
     let (l, r) = items.split_at_mut(left);
+    let [ls, rs] = sides.unwrap_or_else(|| [Summary::of(l), Summary::of(r)]);
     let (li, ri) = if n > PAR_MIN && depth < PAR_DEPTH {
         // Each half into its own list, then appended with indices shifted:
         // the same tree as the serial order gives.
-        let sub = |items: &mut [Item], offset: usize| {
-            let mut v = Vec::new();
-            build_rec(items, offset, depth + 1, max_leaf, &mut v);
+        let sub = |items: &mut [Item], sum: Summary, offset: usize| {
+            let mut v = Vec::with_capacity(2 * items.len() - 1);
+            build_rec(items, sum, offset, depth + 1, max_leaf, &mut v);
             v
         };
-        let (lv, rv) = rayon::join(|| sub(l, offset), || sub(r, offset + left));
+        let (lv, rv) = rayon::join(|| sub(l, ls, offset), || sub(r, rs, offset + left));
         let mut append = |v: Vec<Node2>| {
             let base = nodes.len() as u32;
             nodes.extend(v.into_iter().map(|mut nd| {
@@ -208,7 +249,7 @@ fn build_rec(items: &mut [Item], offset: usize, depth: u32, max_leaf: usize, nod
         };
         (append(lv), append(rv))
     } else {
-        (build_rec(l, offset, depth + 1, max_leaf, nodes), build_rec(r, offset + left, depth + 1, max_leaf, nodes))
+        (build_rec(l, ls, offset, depth + 1, max_leaf, nodes), build_rec(r, rs, offset + left, depth + 1, max_leaf, nodes))
     };
     nodes[id as usize] = Node2::new(bounds, li, ri, INNER);
     id
@@ -236,7 +277,7 @@ fn sweep_split(items: &mut [Item], parent_area: f32) -> Option<Split> {
             t += items[i - 1].tri() as usize;
             let cost = COST_TRAVERSE + COST_UNIT * (b.half_area() * units(t, i - t) + right_cost[i]) * inv_area;
             if best.as_ref().is_none_or(|(s, _)| cost < s.cost) {
-                best = Some((Split { cost, left: i }, axis));
+                best = Some((Split { cost, left: i, sides: None }, axis));
             }
         }
     }
@@ -297,16 +338,21 @@ fn binned_split(items: &mut [Item], parent_area: f32, cbounds: Aabb) -> Option<S
     let (cost, axis, k) = best?;
     let scale = BINS as f32 / ext[axis];
     let bin_of = |c: f32| (((c - cbounds.lo[axis]) * scale) as usize).min(BINS - 1);
-    // In-place partition.
+    // In-place partition, gathering the two sides' summaries on the way.
     let mut left = 0;
+    let (mut ls, mut rs) = (Summary::EMPTY, Summary::EMPTY);
     for i in 0..items.len() {
-        if bin_of(items[i].centroid()[axis]) < k {
+        let it = items[i];
+        if bin_of(it.centroid()[axis]) < k {
+            ls.add(&it);
             items.swap(i, left);
             left += 1;
+        } else {
+            rs.add(&it);
         }
     }
     if left == 0 || left == items.len() {
         return None;
     }
-    Some(Split { cost, left })
+    Some(Split { cost, left, sides: Some([ls, rs]) })
 }
