@@ -426,7 +426,6 @@ mod polarized_values {
                         let s = f.0[r][c].0.to_array()[i];
                         let err = (s - m).abs() / scale;
                         worst = worst.max(err);
-                        eprintln!("{line:.40} λ {} m[{r}][{c}]: Snell {s} Mitsuba {m}", v[i]);
                         assert!(err <= 0.003, "{line:.60}: λ {} m[{r}][{c}]: Snell {s} vs Mitsuba {m}", v[i]);
                     }
                 }
