@@ -121,6 +121,35 @@ impl BsdfModel for RoughConductor {
         self.roughness.at(si).pdf(wi, h) / (4.0 * wo.dot(h))
     }
 
+    /// `eval` and `pdf` sharing the half vector, the distribution, D and
+    /// G1(wi); the same floating-point operations as the two apart.
+    #[inline]
+    fn eval_pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> (S, f32) {
+        if wi.z <= 0.0 || wo.z <= 0.0 || !ctx.wants(Lobe::GLOSSY_REFLECTION) {
+            return (S::zero(), 0.0);
+        }
+        let h = (wi + wo).normalize();
+        let (cos_ih, cos_oh) = (wi.dot(h), wo.dot(h));
+        let mf = self.roughness.at(si);
+        let d = mf.d(h);
+        if d == 0.0 {
+            return (S::zero(), 0.0);
+        }
+        let g1_wi = mf.g1(wi, h);
+        let pdf = if cos_ih <= 0.0 || cos_oh <= 0.0 {
+            0.0
+        } else if mf.sample_visible {
+            d * g1_wi * cos_ih.abs() / wi.z / (4.0 * cos_oh)
+        } else {
+            d * h.z / (4.0 * cos_oh)
+        };
+        let g = g1_wi * mf.g1(wo, h);
+        if g == 0.0 {
+            return (S::zero(), pdf);
+        }
+        (self.fresnel::<S>(si, wi, wo, h, wl) * (d * g / (4.0 * wi.z)), pdf)
+    }
+
     #[inline]
     fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, _u1: f32, u2: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
         if wi.z <= 0.0 || !ctx.wants(Lobe::GLOSSY_REFLECTION) {
@@ -253,6 +282,25 @@ mod tests {
             assert!((s.wo - Vec3::new(-wi.x, -wi.y, wi.z)).length() < 0.01);
             for c in 0..3 {
                 assert!((albedo[c] - f[c]).abs() < 0.01, "θ={theta}: {albedo:?} vs {f:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn eval_pdf_is_eval_and_pdf() {
+        use crate::spectrum::Polarized;
+        let si = dummy_interaction();
+        let mut rng = crate::math::Pcg32::new(5, 9);
+        for (m, _) in all_kinds() {
+            let b = Bsdf::RoughConductor(m);
+            for _ in 0..300 {
+                let mut dir = || Vec3::new(2.0 * rng.next_f32() - 1.0, 2.0 * rng.next_f32() - 1.0, 2.0 * rng.next_f32() - 0.3).normalize();
+                let (wi, wo) = (dir(), dir());
+                let ctx = BsdfContext::RADIANCE;
+                let (f, p): (Rgb, f32) = b.eval_pdf(&ctx, &si, wi, wo, &());
+                assert_eq!((f, p), (b.eval::<Rgb>(&ctx, &si, wi, wo, &()), b.pdf::<Rgb>(&ctx, &si, wi, wo, &())));
+                let (f, p): (Polarized<Rgb>, f32) = b.eval_pdf(&ctx, &si, wi, wo, &());
+                assert_eq!((f, p), (b.eval::<Polarized<Rgb>>(&ctx, &si, wi, wo, &()), b.pdf::<Polarized<Rgb>>(&ctx, &si, wi, wo, &())));
             }
         }
     }
