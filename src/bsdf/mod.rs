@@ -202,6 +202,14 @@ pub trait BsdfModel {
     /// The density (solid angle) with which `sample` picks `wo` under `ctx`.
     fn pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> f32;
 
+    /// `eval` and `pdf` at once (an emitter sample weighted by MIS needs
+    /// both); models whose two share work (a microfacet's D and G1)
+    /// override it. Must equal (`eval`, `pdf`).
+    #[inline]
+    fn eval_pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> (S, f32) {
+        (self.eval::<S>(ctx, si, wi, wo, wl), self.pdf::<S>(ctx, si, wi, wo, wl))
+    }
+
     /// A direction `wo` with weight eval / pdf (or the delta lobe's weight);
     /// `u1` picks a lobe, `u2` the direction within it.
     fn sample<S: Spectrum>(
@@ -384,6 +392,12 @@ impl Bsdf {
     #[inline]
     pub fn pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> f32 {
         dispatch!(self, b => b.pdf::<S>(ctx, si, wi, wo, wl))
+    }
+
+    /// See [`BsdfModel::eval_pdf`].
+    #[inline]
+    pub fn eval_pdf<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, wl: &S::Wavelengths) -> (S, f32) {
+        dispatch!(self, b => b.eval_pdf::<S>(ctx, si, wi, wo, wl))
     }
 
     /// See [`BsdfModel::sample`].

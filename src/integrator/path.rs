@@ -81,9 +81,9 @@ impl PathTracer {
             if bsdf.lobes().intersects(Lobe::SMOOTH) {
                 if let Some(es) = scene.sample_emitter::<S>(&si, sampler.next_2d(), wl) {
                     let wo = si.to_local(es.d);
-                    let f: S = bsdf.eval(&BsdfContext::RADIANCE, &si, si.wi, wo, wl);
+                    let (f, pdf): (S, f32) = bsdf.eval_pdf(&BsdfContext::RADIANCE, &si, si.wi, wo, wl);
                     if !f.is_zero() {
-                        let w = if es.delta { 1.0 } else { mis_power(es.pdf, bsdf.pdf::<S>(&BsdfContext::RADIANCE, &si, si.wi, wo, wl)) };
+                        let w = if es.delta { 1.0 } else { mis_power(es.pdf, pdf) };
                         result += throughput * f * es.weight * w;
                     }
                 }

@@ -165,7 +165,7 @@ impl Spectrum for Sampled {
         Sampled::from_fn(|i| s.eval(wl.lambda[i]))
     }
     fn from_illuminant(rgb: Rgb, wl: &Wavelengths) -> Self {
-        let (scale, s) = RgbUplift::get().unbounded(rgb);
+        let (scale, s) = RgbUplift::get().illuminant(rgb);
         Sampled::from_fn(|i| scale * s.eval(wl.lambda[i]) * d65_unit(wl.lambda[i]))
     }
     #[inline]
@@ -175,7 +175,7 @@ impl Spectrum for Sampled {
     }
     #[inline]
     fn from_illuminant_cached(rgb: Rgb, cache: &UpliftCache, wl: &Wavelengths) -> Self {
-        let (scale, s) = cache.unbounded(rgb);
+        let (scale, s) = cache.illuminant(rgb);
         Sampled::from_fn(|i| scale * s.eval(wl.lambda[i]) * d65_unit(wl.lambda[i]))
     }
     fn from_unbounded(rgb: Rgb, wl: &Wavelengths) -> Self {
