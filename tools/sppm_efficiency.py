@@ -11,13 +11,17 @@ prints for each method
 relMSE = mean over pixels and channels of (x − ref)² / (ref² + 0.01),
 averaged over the runs, seconds the median CPU time of the render process
 divided by --threads (fairer than wall time on a shared machine; wall time
-is printed too). The scene's integrator block is replaced by each method's
+is printed too). All renders use a box pixel filter (sppm's). With --ref sppm the reference is a long sppm render instead
+(--ref-iterations iterations of --ref-photons photons, initial radius
+--ref-radius in world units): for scenes whose light a path tracer cannot
+find in any affordable time (scenes/pool-sun.xml). The scene's integrator block is replaced by each method's
 (both with the scene's max_depth); --drop removes an element by a regex
 (e.g. the pool's sky, which sppm cannot emit photons from).
 
 Usage: python3 tools/sppm_efficiency.py --scene scenes/caustic-cornell-box.xml
            [--res 64] [--threads 2] [--ref-spp 8192] [--iterations 64]
            [--photons 50000] [--runs 3] [--drop REGEX] [-D key=value ...]
+           [--ref sppm --ref-iterations 256 --ref-photons 2000000 --ref-radius 0.01]
 """
 import argparse
 import json
@@ -32,16 +36,20 @@ sys.path.insert(0, os.path.join(ROOT, "tools"))
 from bench import read_pfm, rel_mse  # noqa: E402
 
 
-def variant(args, integrator):
+def variant(args, integrator, name=""):
     text = open(args.scene).read()
     text, n = re.subn(r"<integrator.*</integrator>", integrator, text, count=1, flags=re.S)
     if n != 1:
         sys.exit(f"{args.scene}: no <integrator> block")
+    # Every method with a box pixel filter (sppm's), so that filters do not differ.
+    text, n = re.subn(r"<rfilter[^>]*/>|<rfilter.*?</rfilter>", '<rfilter type="box"/>', text, flags=re.S)
+    if n == 0:
+        text = text.replace("</film>", '<rfilter type="box"/></film>', 1)
     for pattern in args.drop:
         text, n = re.subn(pattern, "", text, flags=re.S)
         if n == 0:
             sys.exit(f"--drop {pattern!r} matched nothing")
-    path = os.path.join(os.path.dirname(args.scene), f".sppm-eff-{args.tag}-" + os.path.basename(args.scene))
+    path = os.path.join(os.path.dirname(args.scene), f".sppm-eff-{args.tag}-{name}-" + os.path.basename(args.scene))
     with open(path, "w") as f:
         f.write(text)
     return path
@@ -90,25 +98,42 @@ def main():
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--drop", action="append", default=[])
     ap.add_argument("-D", dest="defines", action="append", default=[])
+    ap.add_argument("--ref", choices=["path", "sppm"], default="path")
+    ap.add_argument("--ref-iterations", type=int, default=256)
+    ap.add_argument("--ref-photons", type=int, default=2000000)
+    ap.add_argument("--ref-radius", type=float, default=0.0, help="the sppm reference's initial radius (0: automatic)")
+    ap.add_argument("--ref-pfm", help="use this reference image (.pfm) instead of rendering one")
     ap.add_argument("--tag", default="run", help="names the temporary files (runs in parallel need different tags)")
     ap.add_argument("--snell", default=os.path.join(ROOT, "target", "release", "snell"))
     args = ap.parse_args()
     path_xml = f'<integrator type="path"><integer name="max_depth" value="{args.max_depth}"/></integrator>'
     sppm_xml = (f'<integrator type="sppm"><integer name="max_depth" value="{args.max_depth}"/>'
                 f'<integer name="photon_count" value="{args.photons}"/></integrator>')
-    path_scene, sppm_scene = variant(args, path_xml), None
+    ref_xml = (f'<integrator type="sppm"><integer name="max_depth" value="{args.max_depth}"/>'
+               f'<integer name="photon_count" value="{args.ref_photons}"/>'
+               f'<float name="initial_radius" value="{args.ref_radius}"/></integrator>')
+    path_scene, sppm_scene, ref_scene = variant(args, path_xml, "path"), None, None
     try:
-        sppm_scene = variant(args, sppm_xml)
+        sppm_scene = variant(args, sppm_xml, "sppm")
         print(f"{args.scene} at {args.res} px, {args.threads} threads, drop {args.drop}")
-        wall, cpu, ref = render(args, path_scene, args.ref_spp, 1000, f"/tmp/sppm-eff-{args.tag}-ref.pfm")
-        print(f"  reference: path {args.ref_spp} spp, cpu/threads {cpu:.1f} s")
+        if args.ref_pfm:
+            ref = read_pfm(args.ref_pfm)[2]
+            print(f"  reference: {args.ref_pfm}")
+        elif args.ref == "sppm":
+            ref_scene = variant(args, ref_xml, "ref")
+            wall, cpu, ref = render(args, ref_scene, args.ref_iterations, 1000, f"/tmp/sppm-eff-{args.tag}-ref.pfm")
+            print(f"  reference: sppm {args.ref_iterations} iterations of {args.ref_photons} photons, "
+                  f"radius {args.ref_radius}, cpu/threads {cpu:.1f} s")
+        else:
+            wall, cpu, ref = render(args, path_scene, args.ref_spp, 1000, f"/tmp/sppm-eff-{args.tag}-ref.pfm")
+            print(f"  reference: path {args.ref_spp} spp, cpu/threads {cpu:.1f} s")
         eff_sppm, t_sppm = measure(args, "sppm", sppm_scene, args.iterations, ref)
         _, t16, _ = render(args, path_scene, 16, 999, f"/tmp/sppm-eff-{args.tag}-cal.pfm")
         spp = max(1, round(16 * t_sppm / max(t16, 1e-3)))
         eff_path, _ = measure(args, "path", path_scene, spp, ref)
         print(f"  sppm / path efficiency: {eff_sppm / eff_path:.2f}x")
     finally:
-        for p in (path_scene, sppm_scene):
+        for p in (path_scene, sppm_scene, ref_scene):
             if p and os.path.exists(p):
                 os.remove(p)
 

@@ -1228,13 +1228,13 @@ impl Loader {
             "sppm" => {
                 let max_depth = props.int_checked("max_depth", -1, |v| v == -1 || v >= 1, "-1 (unlimited) or a positive integer")?;
                 let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
-                let photon_count = props.int_checked("photon_count", 250_000, |v| (1..=1 << 24).contains(&v), "between 1 and 16777216 (2^24)")?;
+                let photon_count = props.int_checked("photon_count", -1, |v| v == -1 || (1..=1 << 24).contains(&v), "-1 (automatic: one per pixel) or between 1 and 16777216 (2^24)")?;
                 let initial_radius = props.float_checked("initial_radius", 0.0, |r| r >= 0.0 && r.is_finite(), "0 (automatic) or a positive length")?;
                 let alpha = props.float_checked("alpha", 2.0 / 3.0, |a| a > 0.0 && a < 1.0, "between 0 and 1 (exclusive)")?;
                 let granularity = props.int_checked("granularity", 0, |v| (0..=1 << 24).contains(&v), "0 (automatic) or a positive integer up to 2^24")?;
                 let passes = props.int_checked("max_passes", -1, |v| v == -1 || (1..=MAX_SPP as i64).contains(&v), "-1 (the sampler's sample count) or between 1 and 2^24")?;
                 Integrator::Sppm(Sppm {
-                    photon_count: photon_count as u32,
+                    photon_count: photon_count.max(0) as u32,
                     initial_radius,
                     alpha,
                     max_depth: self.depth_limit(&props, "max_depth", max_depth),
