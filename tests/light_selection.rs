@@ -290,3 +290,67 @@ fn bad_light_sampling_is_a_located_error_listing_the_choices() {
     let shown = load_text(&text).err().expect("an error").to_string();
     assert!(shown.contains("differs") && shown.contains(":4:"), "{shown}");
 }
+
+/// A 16 × 16 grid of equal point lights 1 above a floor 16 wide, with
+/// `strategy`.
+fn light_grid(strategy: &str) -> Scene {
+    let mut text = format!(
+        r#"<scene version="3.0.0">
+    <integrator type="path"><string name="light_sampling" value="{strategy}"/></integrator>
+    <sensor type="perspective"><transform name="to_world"><lookat origin="0, 20, 0" target="0, 0, 0" up="0, 0, 1"/></transform></sensor>
+    <shape type="rectangle"><transform name="to_world"><scale value="8"/><rotate x="1" angle="-90"/></transform></shape>
+"#
+    );
+    for i in 0..16 {
+        for j in 0..16 {
+            let (x, z) = (-7.5 + i as f32, -7.5 + j as f32);
+            text += &format!(r#"    <emitter type="point"><point name="position" x="{x}" y="1" z="{z}"/><rgb name="intensity" value="1"/></emitter>
+"#);
+        }
+    }
+    text += "</scene>\n";
+    snell::load_str(&repo("tests/scenes/inline.xml"), &text, &LoadOptions::default()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn bvh_selection_follows_irradiance_over_a_wide_grid() {
+    // At floor points all over a grid of equal point lights, the variance
+    // of one-light estimates of the (unoccluded) irradiance, relative to
+    // its square: Σ_i s_i² / pmf_i − 1, with s_i light i's share. Zero for
+    // selection in proportion to each light's contribution; power
+    // selection (uniform here) is far from it. The near/far bounds keep
+    // the BVH's choice near the ideal even where the shading point lies
+    // inside the bounds of the nodes it chooses between (pbrt-v4's
+    // importance clamps every distance inside a node's bounding sphere to
+    // its radius, and chooses there by flux alone).
+    let (bvh, power) = (light_grid("bvh"), light_grid("power"));
+    let mut worst: f64 = 0.0;
+    let mut mean = [0.0f64; 2];
+    let mut r = Lcg(7);
+    const POINTS: usize = 200;
+    for _ in 0..POINTS {
+        let at = ShadingPoint { p: Vec3::new(16.0 * r.next() - 8.0, 0.0, 16.0 * r.next() - 8.0), n: Vec3::Y };
+        let contrib: Vec<f64> = bvh
+            .emitters
+            .iter()
+            .map(|e| {
+                let snell::emitter::Emitter::Point(l) = e else { panic!("only point lights") };
+                let d = (l.position - at.p).as_dvec3();
+                d.y / d.length().powi(3)
+            })
+            .collect();
+        let total: f64 = contrib.iter().sum();
+        for (k, scene) in [&bvh, &power].into_iter().enumerate() {
+            let pmf_sum: f64 = (0..contrib.len()).map(|i| scene.emitter_pmf(i, &at) as f64).sum();
+            assert!((pmf_sum - 1.0).abs() < 1e-4, "Σ pmf = {pmf_sum}");
+            let v: f64 = contrib.iter().enumerate().map(|(i, c)| (c / total).powi(2) / scene.emitter_pmf(i, &at) as f64).sum::<f64>() - 1.0;
+            mean[k] += v / POINTS as f64;
+            if k == 0 {
+                worst = worst.max(v);
+            }
+        }
+    }
+    eprintln!("relative variance of one-light irradiance estimates: bvh mean {:.3} worst {worst:.3}, power mean {:.3}", mean[0], mean[1]);
+    assert!(mean[1] > 5.0, "power selection's relative variance {}", mean[1]);
+    assert!(mean[0] < 0.35 && worst < 0.6, "bvh: relative variance mean {} worst {worst}", mean[0]);
+}

@@ -30,9 +30,11 @@
 //! overflow. Splats (light tracing: any number per path) and merges add with
 //! saturation instead. NaN values count as zero (the render loop zeroes and
 //! counts them before). In a [`Sink`], the colour and weight sums of
-//! samples below 1024 (in film units) go to `i64` sums first, which move into
-//! the `i128` ones whenever an addition would overflow — exact either way,
-//! and nearly as cheap as the float sums they replace.
+//! samples below 16 (in film units) go to `i64` sums first. Their terms are
+//! below 2^56, and the sink keeps a bound on every such sum (the sum of the
+//! samples' largest terms): before it could pass `i64::MAX`, all of them move
+//! into the `i128` ones. So adding needs no overflow check — exact either
+//! way, and nearly as cheap as the float sums they replace.
 
 use super::{Channel, Filter, Image, Layer, PixelFormat};
 use crate::spectrum::Rgb;
@@ -127,14 +129,20 @@ pub struct Sink {
     /// The sums, in fixed point: the wide accumulators.
     data: Vec<i128>,
     /// Colour and weight sums of camera samples in `i64` (cheaper to add
-    /// to); a sum that would overflow moves to `data` instead.
+    /// to), moved into `data` before they could overflow (see `load`).
     narrow: Vec<[i64; 4]>,
+    /// A bound on |every narrow sum| since they were last moved: the sum
+    /// over the narrow samples of their largest possible term (a sample adds
+    /// at most one term to each sum). While it stays within `i64::MAX` no
+    /// narrow sum can overflow, so adding to them needs no checks.
+    load: u64,
 }
 
 /// Samples whose largest fixed-point value (colour, and the weight's 1) is
-/// below this (1024 in film units) go to the narrow sums: a term then stays
-/// below 2^20 · 2^42 = 2^62.
-const NARROW_LIMIT: u64 = 1 << 42;
+/// below this (16 in film units) go to the narrow sums: a term then stays
+/// below 2^20 · 2^36 = 2^56, so at least 2^7 such samples (2^11 of values
+/// below 1) fit the `i64` sums between two moves into the wide ones.
+const NARROW_LIMIT: u64 = 1 << 36;
 
 impl Sink {
     /// A sink of `width` × `height` pixels whose top-left pixel is (`x0`,
@@ -153,7 +161,20 @@ impl Sink {
             n_extra: layout.extra.len(),
             data: vec![0; width * height * stride],
             narrow: if layout.camera { vec![[0; 4]; width * height] } else { vec![] },
+            load: 0,
         }
+    }
+
+    /// Moves the narrow sums into the wide ones.
+    fn flush_narrow(&mut self) {
+        let stride = self.stride;
+        for (px, n) in self.data.chunks_exact_mut(stride).zip(self.narrow.iter_mut()) {
+            for k in 0..4 {
+                px[k] += n[k] as i128;
+            }
+            *n = [0; 4];
+        }
+        self.load = 0;
     }
 
     /// Adds a camera sample taken at continuous film position `pos` (pixels,
@@ -185,27 +206,29 @@ impl Sink {
         let s = s123.map(|s| [0, 1, 2, 3, 4, 5, 6, 7, 8].map(|k| fixed_value(s[k / 3][k % 3])));
         let stride = self.stride;
         let peak = v.iter().map(|q| q.unsigned_abs()).max().unwrap_or(0);
-        // Every term of a sample below the limit fits an i64 (|w| ≤ 2^20).
-        let narrow = peak < NARROW_LIMIT && !self.narrow.is_empty();
+        // Every term of a sample below the limit is below 2^56 (|w| ≤ 2^20);
+        // the filter's values are within ±1 (checked here, so a weight needs
+        // no clamp: it is the same as `fixed_weight`'s).
+        let in_range = |w: &[f32]| w.iter().all(|x| x.abs() <= 1.0);
+        let narrow = peak < NARROW_LIMIT && !self.narrow.is_empty() && in_range(&wx[..nx]) && in_range(&wy[..ny]);
+        if narrow {
+            let bound = peak << WEIGHT_BITS;
+            if self.load > i64::MAX as u64 - bound {
+                self.flush_narrow();
+            }
+            self.load += bound;
+        }
         for j in 0..ny {
             if wy[j] == 0.0 {
                 continue;
             }
             let row = ((y0 - self.y0) as usize + j) * self.width + (x0 - self.x0) as usize;
             if narrow {
-                let (sums, wide) = (&mut self.narrow, &mut self.data);
-                for (i, (n, &wxi)) in sums[row..row + nx].iter_mut().zip(&wx[..nx]).enumerate() {
-                    let w = fixed_weight(wxi * wy[j]);
+                // No sum can overflow: |sum| ≤ `load` ≤ i64::MAX.
+                for (n, &wxi) in self.narrow[row..row + nx].iter_mut().zip(&wx[..nx]) {
+                    let w = (wxi * wy[j] * WEIGHT_SCALE) as i64;
                     for k in 0..4 {
-                        let t = w * v[k];
-                        match n[k].checked_add(t) {
-                            Some(sum) => n[k] = sum,
-                            None => {
-                                // Rare: the narrow sum moves to the wide one.
-                                wide[(row + i) * stride + k] += n[k] as i128 + t as i128;
-                                n[k] = 0;
-                            }
-                        }
+                        n[k] += w * v[k];
                     }
                 }
                 if s.is_none() {
@@ -837,19 +860,28 @@ mod tests {
         let mut state = FilmState::empty(header(layout.clone()));
         let mut sink = Sink::new(&layout, 0, 0, 8, 8);
         let filter = Filter::new(FilterKind::Box);
-        // 1000 is narrow, each term near 2^62: the i64 sums overflow often.
-        let values = [1000.0f32, 999.5, -1000.0, 1e6, 3.0e9, 1000.0, 0.25];
-        for _ in 0..10 {
+        // 15 is narrow, each term near 2^56: the i64 sums must move to the
+        // wide ones every 2^7 samples or so.
+        let values = [15.0f32, 14.5, -15.0, 1e6, 3.0e9, 15.0, 0.25];
+        for _ in 0..100 {
             for &v in &values {
                 sink.add_sample(&filter, Vec2::new(2.5, 3.5), Rgb::new(v, -v, 0.5), None, &[]);
             }
         }
+        // Narrow samples only, at another pixel: they moved to the wide sums.
+        for _ in 0..1000 {
+            sink.add_sample(&filter, Vec2::new(5.5, 1.5), Rgb::new(15.5, 0.0, 0.0), None, &[]);
+        }
+        let j = (8 + 5) * layout.stride();
+        assert!(sink.data[j] != 0 && sink.load <= i64::MAX as u64);
         state.add_sink(&sink);
         let i = (3 * 8 + 2) * layout.stride();
-        let want = |v: f32| 10 * values.iter().map(|&x| term(1 << WEIGHT_BITS, fixed_value(x * v))).sum::<i128>();
+        let want = |v: f32| 100 * values.iter().map(|&x| term(1 << WEIGHT_BITS, fixed_value(x * v))).sum::<i128>();
         assert_eq!(state.data[i], want(1.0));
         assert_eq!(state.data[i + 1], want(-1.0));
-        assert_eq!(state.data[i + 3], 70 * term(1 << WEIGHT_BITS, 1 << VALUE_BITS));
+        assert_eq!(state.data[i + 3], 700 * term(1 << WEIGHT_BITS, 1 << VALUE_BITS));
+        assert_eq!(state.data[j], 1000 * term(1 << WEIGHT_BITS, fixed_value(15.5)));
+        assert_eq!(state.data[j + 3], 1000 * term(1 << WEIGHT_BITS, 1 << VALUE_BITS));
     }
 
     #[test]
