@@ -9,7 +9,7 @@
 //! [`render_passes`] renders in progressive passes with a callback, and
 //! [`render_progressive`] also resumes from a saved state.
 
-use crate::film::{FilmState, Image, Layout, PixelFormat, Sink, StateHeader};
+use crate::film::{FilmState, Image, Layout, PixelFormat, Sink, StateHeader, window_filter_mass};
 use crate::integrator::{Bdpt, BdptScratch, Integrator, ParticleTracer};
 use crate::spectrum::Rgb;
 use crate::sampler::Sampler;
@@ -687,6 +687,10 @@ fn render_bdpt<S: Spectrum>(
     let taken = AtomicU64::new(0);
     let invalid = AtomicU64::new(0);
     let light = crate::sampler::SamplerSpec { seed: scene.sampler.seed ^ 0x6264_7074_6c69_6768, ..scene.sampler };
+    // Splats weighed as the camera samples they are combined with by MIS
+    // (normalized by the filter's mass inside the window, which matters at
+    // its border); without MIS as `ptracer`'s.
+    let mass = bdpt.mis.then(|| (window_filter_mass(&scene.film.filter, w), window_filter_mass(&scene.film.filter, h)));
     let sinks: Vec<Sink> = pool.broadcast(|_| {
         let mut sink = Sink::new(&layout, -border, -border, (w as i32 + 2 * border) as usize, (h as i32 + 2 * border) as usize);
         let mut scratch = BdptScratch::<S>::default();
@@ -707,10 +711,12 @@ fn render_bdpt<S: Spectrum>(
                     let ray = scene.camera.sample_ray((pos + offset) * inv_size, &mut sampler);
                     let mut light_sampler = Sampler::start(&light, x + ox, y + oy, index);
                     let (l, a) = bdpt.sample::<S>(scene, camera, ray, &mut sampler, &mut light_sampler, &mut wl, &mut scratch, &mut |p, rgb| {
-                        if rgb.is_finite() {
-                            sink.splat(&scene.film.filter, p - offset, rgb);
-                        } else {
+                        if !rgb.is_finite() {
                             bad += 1;
+                        } else if let Some((mx, my)) = &mass {
+                            sink.splat_in_window(&scene.film.filter, p - offset, rgb, mx, my);
+                        } else {
+                            sink.splat(&scene.film.filter, p - offset, rgb);
                         }
                     });
                     let mut rgb = l.to_rgb(&wl);
