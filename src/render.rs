@@ -9,7 +9,7 @@
 //! [`render_passes`] renders in progressive passes with a callback, and
 //! [`render_progressive`] also resumes from a saved state.
 
-use crate::film::{FilmState, Image, Layout, PixelFormat, Sink, StateHeader};
+use crate::film::{FilmState, Image, Layout, PixelFormat, Sink, StateHeader, window_filter_mass};
 use crate::integrator::{Bdpt, BdptScratch, Integrator, ParticleTracer};
 use crate::spectrum::Rgb;
 use crate::sampler::Sampler;
@@ -587,35 +587,38 @@ fn render_camera<S: Spectrum>(
     (taken.into_inner(), invalid.into_inner())
 }
 
-/// Particle tracing: one light path per (pixel, sample index) of the crop
-/// window — `width · height · spp` paths in all — each splatting its
-/// camera connections through the reconstruction filter into a worker's
-/// [`Sink`] over the whole window; the image divides the splat sums by the
-/// number of paths. Rows of pixels are the units of work.
-fn render_particles<S: Spectrum>(
+/// The loop of the integrators that splat (`ptracer`, `bdpt`): every
+/// (pixel, sample index) of `rect` is handed to `sample` (pixel x, y in the
+/// full film, the sample index, the worker's [`Sink`] over the whole crop
+/// window, its count of invalid values). Each worker keeps one sink (splats
+/// land anywhere) and takes rows of pixels from a shared counter; the sinks'
+/// integer sums are added at the end, so the image is the same for any
+/// thread count and pass split. `init` makes a worker's own scratch memory.
+/// Returns the samples taken and the invalid ones.
+#[allow(clippy::too_many_arguments)]
+fn render_splatting<T>(
     scene: &Scene,
-    tracer: &ParticleTracer,
     options: &RenderOptions,
     pool: &rayon::ThreadPool,
     samples: &Range<u32>,
     rect: [u32; 4],
     state: &mut FilmState,
     bar: &ProgressBar,
+    init: impl Fn() -> T + Sync,
+    sample: impl Fn(&mut T, u32, u32, u32, &mut Sink, &mut u64) + Sync,
 ) -> (u64, u64) {
-    // Paths land anywhere on the full film; only the crop window is kept.
-    // `rect`: the pixels whose paths are traced (the window, or a tile).
+    // `rect`: the pixels whose samples are taken (the window, or a tile);
+    // splats land anywhere on the full film, only the crop window is kept.
     let [ox, oy, w, h] = scene.film.crop;
     let [rx, ry, rw, rh] = rect;
-    let offset = Vec2::new(ox as f32, oy as f32);
     let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
     let layout = state.header.layout.clone();
     let next_row = AtomicU64::new(0);
     let taken = AtomicU64::new(0);
     let invalid = AtomicU64::new(0);
-    // Light paths get their own random numbers, apart from camera samples.
-    let light = crate::sampler::SamplerSpec { seed: scene.sampler.seed ^ 0x7061_7274_6963_6c65, ..scene.sampler };
     let sinks: Vec<Sink> = pool.broadcast(|_| {
         let mut sink = Sink::new(&layout, -border, -border, (w as i32 + 2 * border) as usize, (h as i32 + 2 * border) as usize);
+        let mut scratch = init();
         let mut bad = 0u64;
         loop {
             let y = next_row.fetch_add(1, Ordering::Relaxed);
@@ -627,15 +630,7 @@ fn render_particles<S: Spectrum>(
             taken.fetch_add(rw as u64 * samples.len() as u64, Ordering::Relaxed);
             for x in rx..rx + rw {
                 for index in samples.clone() {
-                    let mut sampler = Sampler::start(&light, x + ox, y + oy, index);
-                    let mut wl = S::sample_wavelengths(sampler.next_1d());
-                    tracer.trace::<S>(scene, &mut sampler, &mut wl, &mut |pos, rgb| {
-                        if rgb.is_finite() {
-                            sink.splat(&scene.film.filter, pos - offset, rgb);
-                        } else {
-                            bad += 1;
-                        }
-                    });
+                    sample(&mut scratch, x + ox, y + oy, index, &mut sink, &mut bad);
                 }
             }
             bar.inc(rw as u64 * samples.len() as u64);
@@ -651,15 +646,47 @@ fn render_particles<S: Spectrum>(
     (taken.into_inner(), invalid.into_inner())
 }
 
+/// Particle tracing: one light path per (pixel, sample index) of the crop
+/// window — `width · height · spp` paths in all — each splatting its
+/// camera connections through the reconstruction filter into a worker's
+/// [`Sink`] over the whole window; the image divides the splat sums by the
+/// number of paths. Rows of pixels are the units of work.
+fn render_particles<S: Spectrum>(
+    scene: &Scene,
+    tracer: &ParticleTracer,
+    options: &RenderOptions,
+    pool: &rayon::ThreadPool,
+    samples: &Range<u32>,
+    rect: [u32; 4],
+    state: &mut FilmState,
+    bar: &ProgressBar,
+) -> (u64, u64) {
+    let [ox, oy, _, _] = scene.film.crop;
+    let offset = Vec2::new(ox as f32, oy as f32);
+    // Light paths get their own random numbers, apart from camera samples.
+    let light = crate::sampler::SamplerSpec { seed: scene.sampler.seed ^ 0x7061_7274_6963_6c65, ..scene.sampler };
+    render_splatting(scene, options, pool, samples, rect, state, bar, || (), |_, x, y, index, sink, bad| {
+        let mut sampler = Sampler::start(&light, x, y, index);
+        let mut wl = S::sample_wavelengths(sampler.next_1d());
+        tracer.trace::<S>(scene, &mut sampler, &mut wl, &mut |pos, rgb| {
+            if rgb.is_finite() {
+                sink.splat(&scene.film.filter, pos - offset, rgb);
+            } else {
+                *bad += 1;
+            }
+        });
+    })
+}
+
 /// Bidirectional path tracing: every (pixel, sample index) of the crop
 /// window traces a camera subpath (from `Sampler::start` of the scene's
 /// sampler) and a light subpath (from a sampler of its own seed, as
 /// [`render_particles`]); the pixel estimate goes through the filter as a
-/// camera sample, the light-image connections are splatted. Each worker
-/// keeps a [`Sink`] over the whole window (splats land anywhere); rows of
-/// pixels are the units of work, so the image is the same for any thread
-/// count and pass split. The image divides splat sums by the number of
-/// light subpaths, width · height · spp.
+/// camera sample, the light-image connections are splatted. The loop is
+/// [`render_splatting`]'s (a sink over the whole window per worker, rows of
+/// pixels as units of work), so the image is the same for any thread count
+/// and pass split. The image divides splat sums by the number of light
+/// subpaths, width · height · spp.
 fn render_bdpt<S: Spectrum>(
     scene: &Scene,
     bdpt: &Bdpt,
@@ -673,68 +700,43 @@ fn render_bdpt<S: Spectrum>(
     let crate::sensor::Camera::Perspective(camera) = &scene.camera else {
         anyhow::bail!("bdpt needs a perspective sensor");
     };
-    // `rect`: the pixels whose samples are taken (the window, or a tile);
-    // light-image splats land anywhere in the window.
     let [ox, oy, w, h] = scene.film.crop;
-    let [rx, ry, rw, rh] = rect;
     let offset = Vec2::new(ox as f32, oy as f32);
     let inv_size = Vec2::new(1.0 / scene.film.width as f32, 1.0 / scene.film.height as f32);
-    let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
-    let layout = state.header.layout.clone();
-    let n_extra = layout.extra.len();
+    let n_extra = state.header.layout.extra.len();
     let alpha = scene.film.pixel_format.has_alpha();
-    let next_row = AtomicU64::new(0);
-    let taken = AtomicU64::new(0);
-    let invalid = AtomicU64::new(0);
     let light = crate::sampler::SamplerSpec { seed: scene.sampler.seed ^ 0x6264_7074_6c69_6768, ..scene.sampler };
-    let sinks: Vec<Sink> = pool.broadcast(|_| {
-        let mut sink = Sink::new(&layout, -border, -border, (w as i32 + 2 * border) as usize, (h as i32 + 2 * border) as usize);
-        let mut scratch = BdptScratch::<S>::default();
-        let mut extra = vec![0.0f32; n_extra];
-        let mut bad = 0u64;
-        loop {
-            let y = next_row.fetch_add(1, Ordering::Relaxed);
-            if y >= rh as u64 || options.stopped() {
-                break;
+    // Splats weighed as the camera samples they are combined with by MIS
+    // (normalized by the filter's mass inside the window, which matters at
+    // its border); without MIS as `ptracer`'s.
+    let mass = bdpt.mis.then(|| (window_filter_mass(&scene.film.filter, w), window_filter_mass(&scene.film.filter, h)));
+    let init = || (BdptScratch::<S>::default(), vec![0.0f32; n_extra]);
+    Ok(render_splatting(scene, options, pool, samples, rect, state, bar, init, |(scratch, extra), x, y, index, sink, bad| {
+        let mut sampler = Sampler::start(&scene.sampler, x, y, index);
+        let mut wl = S::sample_wavelengths(sampler.next_1d());
+        // Crop-window coordinates, as the sink's.
+        let pos = Vec2::new((x - ox) as f32, (y - oy) as f32) + sampler.next_2d();
+        let ray = scene.camera.sample_ray((pos + offset) * inv_size, &mut sampler);
+        let mut light_sampler = Sampler::start(&light, x, y, index);
+        let (l, a) = bdpt.sample::<S>(scene, camera, ray, &mut sampler, &mut light_sampler, &mut wl, scratch, &mut |p, rgb| {
+            if !rgb.is_finite() {
+                *bad += 1;
+            } else if let Some((mx, my)) = &mass {
+                sink.splat_in_window(&scene.film.filter, p - offset, rgb, mx, my);
+            } else {
+                sink.splat(&scene.film.filter, p - offset, rgb);
             }
-            let y = ry + y as u32;
-            taken.fetch_add(rw as u64 * samples.len() as u64, Ordering::Relaxed);
-            for x in rx..rx + rw {
-                for index in samples.clone() {
-                    let mut sampler = Sampler::start(&scene.sampler, x + ox, y + oy, index);
-                    let mut wl = S::sample_wavelengths(sampler.next_1d());
-                    let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-                    let ray = scene.camera.sample_ray((pos + offset) * inv_size, &mut sampler);
-                    let mut light_sampler = Sampler::start(&light, x + ox, y + oy, index);
-                    let (l, a) = bdpt.sample::<S>(scene, camera, ray, &mut sampler, &mut light_sampler, &mut wl, &mut scratch, &mut |p, rgb| {
-                        if rgb.is_finite() {
-                            sink.splat(&scene.film.filter, p - offset, rgb);
-                        } else {
-                            bad += 1;
-                        }
-                    });
-                    let mut rgb = l.to_rgb(&wl);
-                    if !rgb.is_finite() {
-                        bad += 1;
-                        rgb = Rgb::BLACK;
-                    }
-                    if alpha && n_extra > 0 {
-                        extra[0] = a;
-                    }
-                    sink.add_sample(&scene.film.filter, pos, rgb, None, &extra);
-                }
-            }
-            bar.inc(rw as u64 * samples.len() as u64);
+        });
+        let mut rgb = l.to_rgb(&wl);
+        if !rgb.is_finite() {
+            *bad += 1;
+            rgb = Rgb::BLACK;
         }
-        if bad > 0 {
-            invalid.fetch_add(bad, Ordering::Relaxed);
+        if alpha && n_extra > 0 {
+            extra[0] = a;
         }
-        sink
-    });
-    for sink in &sinks {
-        state.add_sink(sink);
-    }
-    Ok((taken.into_inner(), invalid.into_inner()))
+        sink.add_sample(&scene.film.filter, pos, rgb, None, extra);
+    }))
 }
 
 /// S1, S2, S3 (as film RGB) of the light a camera ray along `d` brings back,

@@ -335,6 +335,71 @@ impl Sink {
     }
 }
 
+impl Sink {
+    /// Adds `value` at `pos` (pixels, crop-window coordinates) to the splat
+    /// sums as the camera samples there are weighed: pixel p receives
+    /// value · f(pos − p) / ∫_window f(x − p) dx, the filter's mass inside
+    /// the window being `mass_x[column] · mass_y[row]` ([`window_filter_mass`]).
+    /// In expectation a pixel then gets the average that
+    /// [`FilmState::develop`] makes of its camera samples (Σ w·L / Σ w),
+    /// also at the window's border, where [`Sink::splat`] loses the part of
+    /// the footprint outside. Splats outside the window are dropped (no
+    /// camera sample lands there). Only for a layout with `splats`.
+    pub fn splat_in_window(&mut self, filter: &Filter, pos: Vec2, value: Rgb, mass_x: &[f32], mass_y: &[f32]) {
+        if !(pos.x >= 0.0 && pos.x < mass_x.len() as f32 && pos.y >= 0.0 && pos.y < mass_y.len() as f32) {
+            return;
+        }
+        let r = filter.radius();
+        let x0 = (pos.x - 0.5 - r).ceil() as i32;
+        let y0 = (pos.y - 0.5 - r).ceil() as i32;
+        let nx = (((pos.x - 0.5 + r).floor() as i32 - x0 + 1).max(0) as usize).min(MAX_FOOTPRINT);
+        let ny = (((pos.y - 0.5 + r).floor() as i32 - y0 + 1).max(0) as usize).min(MAX_FOOTPRINT);
+        for j in 0..ny {
+            let py = y0 + j as i32;
+            let (y, wy) = (py - self.y0, filter.eval(py as f32 + 0.5 - pos.y));
+            if py < 0 || py as usize >= mass_y.len() || y < 0 || y >= self.height as i32 || wy == 0.0 {
+                continue;
+            }
+            for i in 0..nx {
+                let px = x0 + i as i32;
+                let x = px - self.x0;
+                if px < 0 || px as usize >= mass_x.len() || x < 0 || x >= self.width as i32 {
+                    continue;
+                }
+                let mass = mass_x[px as usize] * mass_y[py as usize];
+                if !(mass > 0.0) {
+                    continue;
+                }
+                let w = fixed_weight(filter.eval(px as f32 + 0.5 - pos.x) * wy);
+                let at = (y as usize * self.width + x as usize) * self.stride + self.splat_offset;
+                for (d, c) in self.data[at..at + 3].iter_mut().zip(0..3) {
+                    *d = d.saturating_add(term(w, fixed_value(value[c] / mass)));
+                }
+            }
+        }
+    }
+}
+
+/// ∫ f(x − c) dx over [0, n] for the centre c = i + ½ of each pixel i of a
+/// window row (or column) of `n` pixels: the filter's mass inside the
+/// window ([`Sink::splat_in_window`]); the same for every pixel farther than
+/// the filter's radius from the window's edges. Midpoint rule, 64 steps a
+/// pixel.
+pub fn window_filter_mass(filter: &Filter, n: u32) -> Vec<f32> {
+    let r = filter.radius();
+    let steps_per_pixel = 64.0f64;
+    (0..n)
+        .map(|i| {
+            let c = i as f64 + 0.5;
+            let (a, b) = ((c - r as f64).max(0.0), (c + r as f64).min(n as f64));
+            let k = ((b - a) * steps_per_pixel).ceil().max(1.0) as usize;
+            let h = (b - a) / k as f64;
+            let sum: f64 = (0..k).map(|j| filter.eval((a + (j as f64 + 0.5) * h - c) as f32) as f64).sum();
+            (sum * h) as f32
+        })
+        .collect()
+}
+
 /// The accumulated sums of a render of some sample ranges of every pixel of
 /// the crop window: what [`crate::render::render_samples`] returns, what
 /// [`FilmState::merge`] adds exactly, and what [`FilmState::develop`] turns
@@ -900,6 +965,45 @@ mod tests {
             assert!((p[0] - 0.5).abs() < 1e-5 && (p[2] - 2.0).abs() < 1e-5);
         }
         assert!(image.channel("A").unwrap().values.iter().all(|&a| (a - 1.0).abs() < 1e-6));
+    }
+
+    /// Splats of a constant signal spread evenly over the window develop to
+    /// that signal in every pixel, the border's too, as camera samples do
+    /// (`constant_signal_develops_to_itself`) — with [`Sink::splat_in_window`];
+    /// [`Sink::splat`] leaves a corner pixel dark by the filter's mass lost
+    /// outside.
+    #[test]
+    fn splats_in_window_develop_a_constant_signal_to_itself() {
+        let layout = Layout { camera: false, splats: true, stokes: false, extra: vec![] };
+        for filter in [Filter::gaussian(0.5), Filter::new(FilterKind::Tent { radius: 1.5 }), Filter::new(FilterKind::Box)] {
+            let (mx, my) = (window_filter_mass(&filter, 8), window_filter_mass(&filter, 8));
+            let develop = |in_window: bool| {
+                let mut state = FilmState::empty(header(layout.clone()));
+                let mut sink = Sink::new(&layout, -3, -3, 14, 14);
+                // 16 × 16 splats a pixel on a regular grid.
+                for j in 0..128 {
+                    for i in 0..128 {
+                        let pos = Vec2::new((i as f32 + 0.5) / 16.0, (j as f32 + 0.5) / 16.0);
+                        if in_window {
+                            sink.splat_in_window(&filter, pos, Rgb::new(0.5, 1.0, 2.0), &mx, &my);
+                        } else {
+                            sink.splat(&filter, pos, Rgb::new(0.5, 1.0, 2.0));
+                        }
+                    }
+                }
+                state.add_sink(&sink);
+                state.header.samples_taken = 256;
+                state.develop()
+            };
+            let image = develop(true);
+            for p in &image.pixels {
+                assert!((p[0] - 0.5).abs() < 1e-3 && (p[1] - 1.0).abs() < 2e-3 && (p[2] - 2.0).abs() < 4e-3, "{:?}: {p:?}", filter.kind);
+            }
+            let corner = develop(false).pixels[0][1];
+            if !matches!(filter.kind, FilterKind::Box) {
+                assert!(corner < 0.9, "{:?}: corner {corner}", filter.kind);
+            }
+        }
     }
 
     #[test]

@@ -41,7 +41,7 @@ pub mod filter;
 pub mod output;
 pub mod stokes;
 
-pub use accumulator::{FilmState, Layout, Sink, StateHeader, TileRegion};
+pub use accumulator::{FilmState, Layout, Sink, StateHeader, TileRegion, window_filter_mass};
 pub use filter::{Filter, FilterKind};
 
 use crate::spectrum::Rgb;

@@ -1202,17 +1202,6 @@ impl Loader {
                 let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
                 let strategy_s = props.int_checked("strategy_s", -1, |v| (-1..=1 << 20).contains(&v), "-1 (every strategy) or a non-negative integer")?;
                 let strategy_t = props.int_checked("strategy_t", -1, |v| v == -1 || (1..=1 << 20).contains(&v), "-1 (every strategy) or a positive integer")?;
-                // Switching strategy families off is measured to leave a bias
-                // (tests/bdpt.rs `fewer_strategies_same_image`, ignored until
-                // it is found): say so rather than render a wrong image quietly.
-                for name in ["light_image", "sample_direct"] {
-                    if !props.bool(name, true)? {
-                        self.warnings.borrow_mut().push(located_warning(
-                            &props.node.loc,
-                            &format!("bdpt with {name} = false is known to be biased in this version (about 2 % too bright on tests/scenes/cornell-glass-gold.xml); leave it true for a correct image"),
-                        ));
-                    }
-                }
                 self.light_sampling(&props, &LightSampling::NAMES)?;
                 Integrator::Bdpt(Bdpt {
                     max_depth: self.depth_limit(&props, "max_depth", max_depth),
