@@ -298,18 +298,7 @@ impl Sink {
     /// the part that falls outside the window is lost). Only for a layout
     /// with `splats`.
     pub fn splat(&mut self, filter: &Filter, pos: Vec2, value: Rgb) {
-        let r = filter.radius();
-        let x0 = (pos.x - 0.5 - r).ceil() as i32;
-        let y0 = (pos.y - 0.5 - r).ceil() as i32;
-        let nx = (((pos.x - 0.5 + r).floor() as i32 - x0 + 1).max(0) as usize).min(MAX_FOOTPRINT);
-        let ny = (((pos.y - 0.5 + r).floor() as i32 - y0 + 1).max(0) as usize).min(MAX_FOOTPRINT);
-        let (mut wx, mut wy) = ([0.0f32; MAX_FOOTPRINT], [0.0f32; MAX_FOOTPRINT]);
-        for i in 0..nx {
-            wx[i] = filter.eval((x0 + i as i32) as f32 + 0.5 - pos.x);
-        }
-        for j in 0..ny {
-            wy[j] = filter.eval((y0 + j as i32) as f32 + 0.5 - pos.y);
-        }
+        let SplatFootprint { x0, y0, nx, ny, wx, wy } = SplatFootprint::new(filter, pos);
         let norm = wx[..nx].iter().sum::<f32>() * wy[..ny].iter().sum::<f32>();
         if !(norm > 0.0) {
             return;
@@ -349,14 +338,10 @@ impl Sink {
         if !(pos.x >= 0.0 && pos.x < mass_x.len() as f32 && pos.y >= 0.0 && pos.y < mass_y.len() as f32) {
             return;
         }
-        let r = filter.radius();
-        let x0 = (pos.x - 0.5 - r).ceil() as i32;
-        let y0 = (pos.y - 0.5 - r).ceil() as i32;
-        let nx = (((pos.x - 0.5 + r).floor() as i32 - x0 + 1).max(0) as usize).min(MAX_FOOTPRINT);
-        let ny = (((pos.y - 0.5 + r).floor() as i32 - y0 + 1).max(0) as usize).min(MAX_FOOTPRINT);
+        let SplatFootprint { x0, y0, nx, ny, wx, wy } = SplatFootprint::new(filter, pos);
         for j in 0..ny {
             let py = y0 + j as i32;
-            let (y, wy) = (py - self.y0, filter.eval(py as f32 + 0.5 - pos.y));
+            let (y, wy) = (py - self.y0, wy[j]);
             if py < 0 || py as usize >= mass_y.len() || y < 0 || y >= self.height as i32 || wy == 0.0 {
                 continue;
             }
@@ -370,13 +355,43 @@ impl Sink {
                 if !(mass > 0.0) {
                     continue;
                 }
-                let w = fixed_weight(filter.eval(px as f32 + 0.5 - pos.x) * wy);
+                let w = fixed_weight(wx[i] * wy);
                 let at = (y as usize * self.width + x as usize) * self.stride + self.splat_offset;
                 for (d, c) in self.data[at..at + 3].iter_mut().zip(0..3) {
                     *d = d.saturating_add(term(w, fixed_value(value[c] / mass)));
                 }
             }
         }
+    }
+}
+
+/// The pixels a splat at `pos` reaches (first `x0`, `y0`; `nx` × `ny` of
+/// them, not clipped to any sink) and the filter's value at each column and
+/// row, for [`Sink::splat`] and [`Sink::splat_in_window`].
+struct SplatFootprint {
+    x0: i32,
+    y0: i32,
+    nx: usize,
+    ny: usize,
+    wx: [f32; MAX_FOOTPRINT],
+    wy: [f32; MAX_FOOTPRINT],
+}
+
+impl SplatFootprint {
+    fn new(filter: &Filter, pos: Vec2) -> SplatFootprint {
+        let r = filter.radius();
+        let x0 = (pos.x - 0.5 - r).ceil() as i32;
+        let y0 = (pos.y - 0.5 - r).ceil() as i32;
+        let nx = (((pos.x - 0.5 + r).floor() as i32 - x0 + 1).max(0) as usize).min(MAX_FOOTPRINT);
+        let ny = (((pos.y - 0.5 + r).floor() as i32 - y0 + 1).max(0) as usize).min(MAX_FOOTPRINT);
+        let (mut wx, mut wy) = ([0.0f32; MAX_FOOTPRINT], [0.0f32; MAX_FOOTPRINT]);
+        for (i, w) in wx[..nx].iter_mut().enumerate() {
+            *w = filter.eval((x0 + i as i32) as f32 + 0.5 - pos.x);
+        }
+        for (j, w) in wy[..ny].iter_mut().enumerate() {
+            *w = filter.eval((y0 + j as i32) as f32 + 0.5 - pos.y);
+        }
+        SplatFootprint { x0, y0, nx, ny, wx, wy }
     }
 }
 
