@@ -42,8 +42,9 @@
 //! ```
 
 use crate::geometry::SurfaceInteraction;
+use crate::bsdf::Lobe;
 use crate::math::PI;
-use crate::math::sampling::square_to_uniform_disk_concentric;
+use crate::math::sampling::{square_to_cosine_hemisphere, square_to_uniform_disk_concentric};
 use crate::scene::error::{Result, SceneError};
 use crate::scene::loader::PluginLoader;
 use crate::scene::props::Props;
@@ -120,6 +121,20 @@ impl Microfacet {
     pub fn pdf(&self, wi: Vec3, m: Vec3) -> f32 {
         let d = self.d(m);
         if self.sample_visible { d * self.g1(wi, m) * wi.dot(m).abs() / wi.z } else { d * m.z }
+    }
+
+    /// One-sample choice of the plastics' two lobes: with probability
+    /// `p_specular` a reflection about a sampled microfacet normal (the
+    /// coating), else a cosine-weighted direction (the diffuse base). `u1`
+    /// picks the lobe, `u2` the direction; `wo` may fall below the surface
+    /// (the caller rejects it). Shared by `roughplastic` and `pplastic`.
+    pub fn sample_over_diffuse(&self, wi: Vec3, p_specular: f32, u1: f32, u2: Vec2) -> (Vec3, Lobe) {
+        if u1 < p_specular {
+            let (m, _) = self.sample(wi, u2);
+            (2.0 * wi.dot(m) * m - wi, Lobe::GLOSSY_REFLECTION)
+        } else {
+            (square_to_cosine_hemisphere(u2), Lobe::DIFFUSE_REFLECTION)
+        }
     }
 
     /// A microfacet normal and its density [`Microfacet::pdf`]; `wi` must be

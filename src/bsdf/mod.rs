@@ -210,6 +210,21 @@ pub trait BsdfModel {
         (self.eval::<S>(ctx, si, wi, wo, wl), self.pdf::<S>(ctx, si, wi, wo, wl))
     }
 
+    /// Finishes a sample of a model whose smooth lobes are picked by one-sample
+    /// MIS: `wo` was drawn from the one lobe `lobe`, so its density is the
+    /// whole mixture's (`pdf`, every lobe `ctx` wants) and its weight is
+    /// `eval` over that density. `None` where the density vanishes or is not
+    /// finite (a direction no lobe can give).
+    #[inline]
+    fn mixture_sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, wo: Vec3, lobe: Lobe, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
+        let pdf = self.pdf::<S>(ctx, si, wi, wo, wl);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
+        let weight = self.eval::<S>(ctx, si, wi, wo, wl) * (1.0 / pdf);
+        Some(BsdfSample { wo, weight, pdf, eta: 1.0, lobe })
+    }
+
     /// A direction `wo` with weight eval / pdf (or the delta lobe's weight);
     /// `u1` picks a lobe, `u2` the direction within it.
     fn sample<S: Spectrum>(

@@ -583,12 +583,7 @@ impl BsdfModel for Principled {
         if reflected == lobe.intersects(Lobe::GLOSSY_TRANSMISSION) || cos_i * wo.z == 0.0 {
             return None;
         }
-        let pdf = self.pdf::<S>(ctx, si, wi, wo, wl);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        let weight = self.eval::<S>(ctx, si, wi, wo, wl) * (1.0 / pdf);
-        Some(BsdfSample { wo, weight, pdf, eta, lobe })
+        self.mixture_sample::<S>(ctx, si, wi, wo, lobe, wl).map(|sample| BsdfSample { eta, ..sample })
     }
 }
 

@@ -329,12 +329,7 @@ impl BsdfModel for PrincipledThin {
             return None;
         }
         let wo = wo * flip;
-        let pdf = self.pdf::<S>(ctx, si, wi, wo, wl);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        let weight = self.eval::<S>(ctx, si, wi, wo, wl) * (1.0 / pdf);
-        Some(BsdfSample { wo, weight, pdf, eta: 1.0, lobe })
+        self.mixture_sample::<S>(ctx, si, wi, wo, lobe, wl)
     }
 }
 

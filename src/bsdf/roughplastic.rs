@@ -64,7 +64,7 @@ use super::microfacet::{Microfacet, MicrofacetType};
 use super::plastic::POLYPROPYLENE;
 use super::{BsdfContext, BsdfModel, BsdfSample, Lobe, choose_lobe};
 use crate::geometry::SurfaceInteraction;
-use crate::math::sampling::{cosine_hemisphere_pdf, square_to_cosine_hemisphere};
+use crate::math::sampling::cosine_hemisphere_pdf;
 use crate::scene::error::Result;
 use crate::scene::loader::PluginLoader;
 use crate::scene::props::Props;
@@ -344,27 +344,18 @@ impl BsdfModel for RoughPlastic {
             return None;
         }
         let p_s = self.prob_specular(ctx, self.transmittance(wi.z))?;
-        let (wo, lobe) = if u1 < p_s {
-            let (m, _) = self.microfacet().sample(wi, u2);
-            (2.0 * wi.dot(m) * m - wi, Lobe::GLOSSY_REFLECTION)
-        } else {
-            (square_to_cosine_hemisphere(u2), Lobe::DIFFUSE_REFLECTION)
-        };
+        let (wo, lobe) = self.microfacet().sample_over_diffuse(wi, p_s, u1, u2);
         if !(wo.z > 0.0) {
             return None;
         }
-        let pdf = self.pdf::<S>(ctx, si, wi, wo, wl);
-        if !(pdf > 0.0 && pdf.is_finite()) {
-            return None;
-        }
-        let weight = self.eval::<S>(ctx, si, wi, wo, wl) * (1.0 / pdf);
-        Some(BsdfSample { wo, weight, pdf, eta: 1.0, lobe })
+        self.mixture_sample::<S>(ctx, si, wi, wo, lobe, wl)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::sampling::square_to_cosine_hemisphere;
     use crate::bsdf::Bsdf;
     use crate::bsdf::testing::*;
 
