@@ -164,19 +164,39 @@ struct TriLanes {
 /// (for tests and measurements).
 pub const PACKED_MAX_TRIANGLES: u64 = 1 << 21;
 
-/// Whether a BVH over `n_tris` triangles keeps packets.
-fn keeps_packets(n_tris: u64) -> bool {
-    static FORCED: std::sync::OnceLock<Option<bool>> = std::sync::OnceLock::new();
+/// How a BVH reads its leaves' triangles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Storage {
+    /// From `TriLanes` (the default up to `PACKED_MAX_TRIANGLES`).
+    Packed,
+    /// Gathered from the meshes as they were loaded.
+    Indexed,
+    /// Gathered from the meshes after their triangles and vertices were
+    /// renumbered in leaf order (`Accel::store_meshes_in_leaf_order`; the
+    /// default above `PACKED_MAX_TRIANGLES`).
+    Ordered,
+}
+
+/// The storage of a BVH over `n_tris` triangles: by size, or as
+/// `SNELL_TRIANGLES=packed|indexed|ordered` forces.
+fn storage(n_tris: u64) -> Storage {
+    static FORCED: std::sync::OnceLock<Option<Storage>> = std::sync::OnceLock::new();
     let forced = FORCED.get_or_init(|| match std::env::var("SNELL_TRIANGLES").as_deref().map(str::trim) {
-        Ok("packed") => Some(true),
-        Ok("indexed") => Some(false),
+        Ok("packed") => Some(Storage::Packed),
+        Ok("indexed") => Some(Storage::Indexed),
+        Ok("ordered") => Some(Storage::Ordered),
         Ok(other) => {
-            eprintln!("warning: SNELL_TRIANGLES={other:?} is not one of packed, indexed; choosing by size");
+            eprintln!("warning: SNELL_TRIANGLES={other:?} is not one of packed, indexed, ordered; choosing by size");
             None
         }
         Err(_) => None,
     });
-    forced.unwrap_or(n_tris <= PACKED_MAX_TRIANGLES)
+    forced.unwrap_or(if n_tris <= PACKED_MAX_TRIANGLES { Storage::Packed } else { Storage::Ordered })
+}
+
+/// Whether a BVH over `n_tris` triangles keeps packets.
+fn keeps_packets(n_tris: u64) -> bool {
+    storage(n_tris) == Storage::Packed
 }
 
 impl<V: Lanes> TriPacket<V> {
@@ -566,6 +586,77 @@ impl Accel {
     pub fn gather_triangles(&mut self) {
         self.lanes = TriLanes::default();
         self.groups.iter_mut().for_each(Accel::gather_triangles);
+    }
+
+    /// Renumbers the triangles of the meshes this BVH (or a group's)
+    /// gathers from in the order of its leaves, and their vertices by first
+    /// use in that order (`Mesh::reorder`), for BVHs whose storage is
+    /// `Storage::Ordered` (by default those over `PACKED_MAX_TRIANGLES`
+    /// triangles): a leaf's triangle indices are then consecutive in the
+    /// index buffer and its vertices mostly neighbours, where the input
+    /// order could scatter them over the whole mesh (a cache miss per
+    /// lane). Hits are the same bits under the new triangle numbers; the
+    /// scene must call this before anything keeps triangle numbers (mesh
+    /// attribute tables, emitter sampling). A mesh some other BVH also
+    /// reads keeps its order. Other BVHs are left as they are, so images of
+    /// scenes below the limit do not change.
+    pub fn store_meshes_in_leaf_order(&mut self, shapes: &mut [Shape]) {
+        self.leaf_order(shapes, false);
+    }
+
+    /// `store_meshes_in_leaf_order`; `force`: whatever the storage.
+    fn leaf_order(&mut self, shapes: &mut [Shape], force: bool) {
+        fn count(a: &Accel, uses: &mut [u32]) {
+            a.meshes.iter().for_each(|m| uses[m.shape as usize] += 1);
+            a.groups.iter().for_each(|g| count(g, uses));
+        }
+        fn reorder(a: &mut Accel, shapes: &mut [Shape], uses: &[u32], force: bool) {
+            for g in &mut a.groups {
+                reorder(g, shapes, uses, force);
+            }
+            if a.tris.is_empty() || !(force || storage(a.tris.len() as u64) == Storage::Ordered) {
+                return;
+            }
+            // Each mesh's triangles in leaf order, one run per mesh.
+            let mut start = Vec::with_capacity(a.meshes.len() + 1);
+            start.push(0usize);
+            for m in &a.meshes {
+                start.push(start.last().copied().unwrap_or(0) + m.triangles.len());
+            }
+            let mut cursor = start.clone();
+            let mut order = vec![0u32; a.tris.len()];
+            for r in &a.tris {
+                order[cursor[r.mesh as usize]] = r.prim;
+                cursor[r.mesh as usize] += 1;
+            }
+            let mut done = vec![false; a.meshes.len()];
+            for (mi, m) in a.meshes.iter_mut().enumerate() {
+                let ShapeGeometry::Mesh(mesh) = &mut shapes[m.shape as usize].geometry else { continue };
+                if uses[m.shape as usize] != 1 || cursor[mi] != start[mi + 1] || mesh.triangles.len() != m.triangles.len() {
+                    continue;
+                }
+                // Drop the BVH's references first: the old buffers are freed
+                // as the mesh replaces them.
+                m.positions = Vec::new().into();
+                m.triangles = Vec::new().into();
+                mesh.reorder(&order[start[mi]..start[mi + 1]]);
+                m.positions = mesh.positions.clone();
+                m.triangles = mesh.triangles.clone();
+                done[mi] = true;
+            }
+            drop(order);
+            cursor.copy_from_slice(&start);
+            for r in &mut a.tris {
+                let mi = r.mesh as usize;
+                if done[mi] {
+                    r.prim = (cursor[mi] - start[mi]) as u32;
+                    cursor[mi] += 1;
+                }
+            }
+        }
+        let mut uses = vec![0u32; shapes.len()];
+        count(self, &mut uses);
+        reorder(self, shapes, &uses, force);
     }
 
     /// Whether leaf triangles are stored as packets (else gathered).
@@ -1219,6 +1310,69 @@ mod tests {
             }
         }
         assert!(hits > 1000 && occluded == hits, "{hits} hits, {occluded} occluded");
+    }
+
+    /// Meshes renumbered in leaf order (top level and an instanced group,
+    /// with degenerate triangles): every ray gets the same hit (t and
+    /// barycentric bits, the same triangle under its new number) and the
+    /// same occlusion as before, gathered and at every level; a leaf's
+    /// triangles are consecutive in their mesh.
+    #[test]
+    fn leaf_order_keeps_every_hit() {
+        let mut rng = Pcg32::new(12, 5);
+        let mut shapes = vec![];
+        for k in 0..3 {
+            let centre = Vec3::new(k as f32 - 1.0, 0.2 * k as f32, 0.0);
+            shapes.push(shape(ShapeGeometry::Mesh(random_mesh(&mut rng, 500 + 100 * k, centre))));
+            shapes.push(shape(ShapeGeometry::Sphere(Sphere { center: centre + Vec3::Z, radius: 0.25, to_object: Transform::IDENTITY, flip_normals: false })));
+        }
+        let instances: Vec<(Transform, u32)> = (0..3)
+            .map(|i| (Transform::from_matrix(Mat4::from_translation(Vec3::new(0.0, i as f32 - 1.0, 1.5)) * Mat4::from_rotation_y(i as f32)).unwrap(), 0))
+            .collect();
+        let (top, groups) = ([0u32, 1, 3], [vec![2u32, 4, 5]]);
+        for level in SimdLevel::ALL.into_iter().filter(|l| l.supported()) {
+            let mut ordered_shapes = shapes.clone();
+            let mut before = Accel::build_instanced(&shapes, &top, &groups, &instances);
+            let mut after = Accel::build_instanced(&ordered_shapes, &top, &groups, &instances);
+            after.leaf_order(&mut ordered_shapes, true);
+            for a in [&mut before, &mut after] {
+                a.gather_triangles();
+                a.set_simd_level(level);
+            }
+            // Every leaf's triangles are a run of consecutive numbers.
+            for accel in [&after, &after.groups[0]] {
+                for leaf in &accel.leaves {
+                    let refs = &accel.tris[leaf.tri_start as usize..leaf.tri_end as usize];
+                    for w in refs.windows(2) {
+                        assert!(w[0].mesh != w[1].mesh || w[1].prim == w[0].prim + 1, "{:?}", refs);
+                    }
+                }
+            }
+            let corners = |s: &[Shape], h: &Hit| match &s[h.shape as usize].geometry {
+                ShapeGeometry::Mesh(m) => m.vertices(h.prim as usize).map(|v| v.to_array().map(f32::to_bits)),
+                _ => [[h.prim; 3]; 3],
+            };
+            let (mut hits, mut renumbered) = (0, 0);
+            for i in 0..4000 {
+                let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 6.0 - 3.0;
+                let d = square_to_uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
+                let ray = Ray { o, d, tmax: if i % 3 == 0 { rng.next_f32() * 4.0 } else { f32::INFINITY } };
+                let (a, b) = (before.intersect(&ray), after.intersect(&ray));
+                let key = |h: &Hit| (h.t.to_bits(), h.bary.0.to_bits(), h.bary.1.to_bits(), h.shape, h.instance);
+                match (a, b) {
+                    (None, None) => {}
+                    (Some(a), Some(b)) => {
+                        hits += 1;
+                        renumbered += (a.prim != b.prim) as usize;
+                        assert_eq!(key(&a), key(&b), "{level:?}, ray {i}");
+                        assert_eq!(corners(&shapes, &a), corners(&ordered_shapes, &b), "{level:?}, ray {i}: another triangle");
+                    }
+                    (a, b) => panic!("{level:?}, ray {i}: {a:?} vs {b:?}"),
+                }
+                assert_eq!(before.occluded(&ray), after.occluded(&ray), "{level:?}, ray {i}");
+            }
+            assert!(hits > 1000 && renumbered > hits / 2, "{hits} hits, {renumbered} renumbered");
+        }
     }
 
     /// A mesh of more triangles than one build thread takes, so the two

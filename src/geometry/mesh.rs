@@ -269,6 +269,100 @@ impl Mesh {
         Some(PositionSample { p, n, sh_n, pdf_area: 1.0 / self.area() })
     }
 
+    /// Renumbers the triangles so that triangle `i` is the old triangle
+    /// `order[i]` (`order` must be a permutation of the triangle indices),
+    /// and the vertices by first use in that order (vertices no triangle
+    /// uses keep their order, at the end). Each triangle keeps its corners
+    /// in the same order and each vertex its position, normal and uv, so
+    /// every hit and every shading value is the same bits as before under
+    /// the new numbers; per-face attributes, stored face normals and
+    /// per-corner (vertex) attributes move with their triangle. The total
+    /// area is summed again in the new order and the area distribution
+    /// (for emitters) is rebuilt on first use: uniform by area as before,
+    /// over the triangles in the new order.
+    ///
+    /// The BVH calls this for big meshes (`Accel::store_meshes_in_leaf_order`) so that a
+    /// leaf's triangles, and mostly their vertices, lie next to each other in memory.
+    pub fn reorder(&mut self, order: &[u32]) {
+        let n = self.triangles.len();
+        assert_eq!(order.len(), n, "a triangle order must list every triangle");
+        // Vertex renumbering by first use; `u32::MAX` = not yet used. The
+        // new buffers are collected straight into their shared arrays (one
+        // allocation each, no copy), and each old one is freed as soon as
+        // it is replaced: this runs after the BVH build, and must not raise
+        // the load's peak memory.
+        let n_verts = self.positions.len();
+        let mut new_of = vec![u32::MAX; n_verts];
+        let mut next = 0u32;
+        let triangles: Arc<[[u32; 3]]> = order
+            .iter()
+            .map(|&t| {
+                self.triangles[t as usize].map(|v| {
+                    let slot = &mut new_of[v as usize];
+                    if *slot == u32::MAX {
+                        *slot = next;
+                        next += 1;
+                    }
+                    *slot
+                })
+            })
+            .collect();
+        self.triangles = Shared(triangles);
+        // Unused vertices last, in their order; then the inverse map.
+        for slot in new_of.iter_mut().filter(|s| **s == u32::MAX) {
+            *slot = next;
+            next += 1;
+        }
+        debug_assert_eq!(next as usize, n_verts);
+        let mut old_of = new_of;
+        {
+            // In place: new_of → old_of, following each cycle once.
+            let mut done = vec![false; n_verts];
+            for start in 0..n_verts {
+                if done[start] {
+                    continue;
+                }
+                // Along the cycle start → new_of[start] → …, set old_of[new_of[v]] = v.
+                let mut v = start;
+                let mut target = old_of[v] as usize;
+                while !done[target] {
+                    done[target] = true;
+                    let after = old_of[target] as usize;
+                    old_of[target] = v as u32;
+                    v = target;
+                    target = after;
+                }
+            }
+        }
+        self.positions = Shared(old_of.iter().map(|&o| self.positions[o as usize]).collect());
+        if let Some(ns) = &mut self.normals {
+            *ns = old_of.iter().map(|&o| ns[o as usize]).collect();
+        }
+        if let Some(uvs) = &mut self.uvs {
+            *uvs = old_of.iter().map(|&o| uvs[o as usize]).collect();
+        }
+        drop(old_of);
+        // Per-triangle data: rows of `row` floats or vectors, gathered in the new order.
+        fn gather<T: Copy>(old: &[T], row: usize, order: &[u32]) -> Vec<T> {
+            let mut out = Vec::with_capacity(old.len());
+            for &t in order {
+                out.extend_from_slice(&old[t as usize * row..(t as usize + 1) * row]);
+            }
+            out
+        }
+        if !self.face_normals.is_empty() {
+            self.face_normals = gather(&self.face_normals, 1, order);
+        }
+        for (_, a) in &mut self.attributes {
+            let row = if a.per_face { a.dims } else { 3 * a.dims };
+            if row > 0 && a.data.len() == row * n {
+                *a = Arc::new(Attribute { per_face: a.per_face, dims: a.dims, data: gather(&a.data, row, order) });
+            }
+        }
+        self.area = (0..n).fold(0.0f64, |acc, i| acc + self.triangle_area(i).max(0.0) as f64) as f32;
+        self.area_distribution = Default::default();
+    }
+
     /// Mitsuba's `rectangle`.
     pub fn rectangle(to_world: &Transform, flip_normals: bool) -> Mesh {
         let local = [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0)];
@@ -412,6 +506,55 @@ mod tests {
                 assert!(p.is_some_and(|l| (l - 1.0).abs() < 1e-5));
             }
         }
+    }
+
+    /// `reorder` renumbers triangles and vertices but keeps every
+    /// triangle's corners, normals, uvs, attributes, face normal and area
+    /// weight, and the vertices a triangle uses come first in first-use order.
+    #[test]
+    fn reorder_keeps_every_triangle_and_its_data() {
+        let mut rng = crate::math::Pcg32::new(9, 2);
+        let mut r = || rng.next_f32();
+        let nv = 60usize;
+        let positions: Vec<Vec3> = (0..nv).map(|_| Vec3::new(r(), r(), r())).collect();
+        let normals: Vec<Vec3> = (0..nv).map(|_| Vec3::new(r() - 0.5, r() - 0.5, 1.0)).collect();
+        let uvs: Vec<Vec2> = (0..nv).map(|_| Vec2::new(r(), r())).collect();
+        // Vertex 59 is used by no triangle.
+        let triangles: Vec<[u32; 3]> = (0..80).map(|_| [0, 1, 2].map(|_| ((r() * 59.0) as u32).min(58))).collect();
+        let n = triangles.len();
+        let mut old = Mesh::new(positions, Some(normals), Some(uvs), triangles.clone(), true);
+        let face = Attribute { per_face: true, dims: 2, data: (0..2 * n).map(|k| k as f32).collect() };
+        let vertex = Attribute { per_face: false, dims: 1, data: (0..nv).map(|k| 1000.0 + k as f32).collect() }.to_corners(&triangles);
+        old.attributes = vec![("face_w".into(), Arc::new(face)), ("vertex_c".into(), Arc::new(vertex))];
+        let order: Vec<u32> = (0..n as u32).map(|i| (i * 37 + 11) % n as u32).collect();
+        let mut new = old.clone();
+        new.reorder(&order);
+        assert_eq!(new.triangles.len(), n);
+        assert_eq!(new.positions.len(), nv);
+        assert_eq!(new.positions[nv - 1], old.positions[nv - 1], "an unused vertex goes last");
+        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        let mut seen = 0u32;
+        for (i, &o) in order.iter().enumerate() {
+            let o = o as usize;
+            assert_eq!(new.vertices(i).map(bits), old.vertices(o).map(bits));
+            assert_eq!(new.face_normal(i).to_array().map(f32::to_bits), old.face_normal(o).to_array().map(f32::to_bits));
+            assert_eq!(new.face_normals[i], old.face_normals[o]);
+            let (a, b) = (new.shading(i, 0.2, 0.3, Vec3::Z), old.shading(o, 0.2, 0.3, Vec3::Z));
+            assert_eq!((bits(a.0), a.1.to_array().map(f32::to_bits)), (bits(b.0), b.1.to_array().map(f32::to_bits)));
+            assert_eq!(new.attributes[0].1.data[2 * i..2 * i + 2], old.attributes[0].1.data[2 * o..2 * o + 2]);
+            assert_eq!(new.attributes[1].1.data[3 * i..3 * i + 3], old.attributes[1].1.data[3 * o..3 * o + 3]);
+            assert_eq!(new.triangle_area(i).to_bits(), old.triangle_area(o).to_bits());
+            // The same weight (up to the rounding of the cumulative sums, summed in another order).
+            let (pn, po) = (new.area_distribution().pmf(i), old.area_distribution().pmf(o));
+            assert!((pn - po).abs() <= 1e-6, "{pn} vs {po}");
+            // First use: a triangle's vertices are at most one past those seen so far.
+            for v in new.triangles[i] {
+                assert!(v <= seen, "vertex {v} numbered out of first-use order");
+                seen = seen.max(v + 1);
+            }
+        }
+        assert!((new.area() - old.area()).abs() <= 1e-5 * old.area());
+        assert!(new.sample_position(Vec2::new(0.4, 0.7)).is_some());
     }
 
     #[test]

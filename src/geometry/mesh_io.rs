@@ -133,30 +133,50 @@ pub fn read_obj(path: &Path) -> Result<RawMesh, String> {
 }
 
 /// What one chunk of an OBJ file holds: its vertex data, its face corners
-/// as written (indices 1-based or negative, 0 where a texture coordinate or
-/// normal index is absent; the bits of an `i32`, resolved in place later to
-/// 0-based `u32` indices), where each face ends, its line (in the chunk)
-/// and the list sizes (in the chunk) when it was read. A chunk is about
-/// 1 MiB of text, so `u32` counts suffice (checked).
+/// as written, one `u32` per corner and index kind (see [`ObjIndex`];
+/// resolved in place later to 0-based indices), where each face ends and
+/// its line (in the chunk). A chunk is about 1 MiB of text, so `u32`
+/// counts suffice (checked). Texture coordinate and normal indices are
+/// kept only while every corner so far has them (a mesh uses them only if
+/// every face does): a file of positions only costs 4 bytes per corner.
 #[derive(Default)]
 struct ObjChunk {
     positions: Vec<Vec3>,
     texcoords: Vec<Vec2>,
     normals: Vec<Vec3>,
-    corners: Vec<[u32; 3]>,
-    /// Indices that do not fit an `i32` (always out of bounds, kept for the
-    /// error message): (corner, slot, value); the corner holds `WIDE`.
-    wide: Vec<(usize, usize, i64)>,
+    /// Per corner, by kind: position, texture coordinate, normal.
+    corners: [Vec<u32>; 3],
+    /// Indices that fit neither form of `ObjIndex` (always out of bounds,
+    /// or naming an earlier piece of the file), in corner order.
+    far: Vec<FarIndex>,
     face_end: Vec<u32>,
     face_line: Vec<u32>,
-    counts_at_face: Vec<[u32; 3]>,
     all_uv: bool,
     all_n: bool,
     lines: usize,
 }
 
-/// A corner index stored in `ObjChunk::wide`.
-const WIDE: u32 = i32::MIN as u32;
+/// How a face corner's index is stored while the pieces are parsed
+/// independently: `1..=ABS_MAX` as written (1-based, absolute), `REL |
+/// r` for a negative index that names element `r` (0-based) of the
+/// chunk's own list, `FAR` for one kept in `ObjChunk::far`.
+struct ObjIndex;
+
+impl ObjIndex {
+    const REL: u32 = 1 << 31;
+    const FAR: u32 = u32::MAX;
+    const ABS_MAX: u32 = i32::MAX as u32;
+}
+
+/// A face corner's index kept aside: corner `corner`, kind `slot`, the
+/// index as written, and for a negative one the 0-based position it names
+/// counted from the start of its chunk (negative: an earlier chunk).
+struct FarIndex {
+    corner: u32,
+    slot: u8,
+    written: i64,
+    rel: Option<i64>,
+}
 
 /// Parses `text` (whole lines); errors carry the line within it (1-based).
 fn parse_obj_chunk(text: &str) -> Result<ObjChunk, (usize, String)> {
@@ -193,7 +213,7 @@ fn parse_obj_chunk(text: &str) -> Result<ObjChunk, (usize, String)> {
                 c.normals.push(n);
             }
             "f" => {
-                let first = c.corners.len();
+                let first = c.corners[0].len();
                 for tok in tokens {
                     let mut parts = tok.split('/');
                     let index = |s: Option<&str>, what: &str| -> Result<Option<i64>, (usize, String)> {
@@ -213,27 +233,46 @@ fn parse_obj_chunk(text: &str) -> Result<ObjChunk, (usize, String)> {
                     if parts.next().is_some() {
                         return Err((line, format!("\"{tok}\" is not a face vertex (v, v/vt, v//vn or v/vt/vn)")));
                     }
-                    c.all_uv &= vt.is_some();
-                    c.all_n &= vn.is_some();
-                    let k = c.corners.len();
-                    let mut narrow = |slot: usize, i: i64| match i32::try_from(i) {
-                        Ok(x) if x != i32::MIN => x as u32,
-                        _ => {
-                            c.wide.push((k, slot, i));
-                            WIDE
+                    let k = c.corners[0].len() as u32;
+                    let counts = [c.positions.len(), c.texcoords.len(), c.normals.len()];
+                    let encode = |slot: usize, i: i64, far: &mut Vec<FarIndex>| -> u32 {
+                        if i > 0 && i <= ObjIndex::ABS_MAX as i64 {
+                            return i as u32;
+                        }
+                        let rel = (i < 0).then(|| counts[slot] as i64 + i);
+                        match rel {
+                            Some(r) if (0..ObjIndex::REL as i64 - 1).contains(&r) => ObjIndex::REL | r as u32,
+                            _ => {
+                                far.push(FarIndex { corner: k, slot: slot as u8, written: i, rel });
+                                ObjIndex::FAR
+                            }
                         }
                     };
-                    let corner = [narrow(0, v), narrow(1, vt.unwrap_or(0)), narrow(2, vn.unwrap_or(0))];
-                    c.corners.push(corner);
+                    let x = encode(0, v, &mut c.far);
+                    c.corners[0].push(x);
+                    for (slot, index) in [(1, vt), (2, vn)] {
+                        let all = if slot == 1 { &mut c.all_uv } else { &mut c.all_n };
+                        match index {
+                            Some(i) if *all => {
+                                let x = encode(slot, i, &mut c.far);
+                                c.corners[slot].push(x);
+                            }
+                            Some(_) => {}
+                            None => {
+                                *all = false;
+                                c.corners[slot] = vec![];
+                            }
+                        }
+                    }
                 }
-                let n = c.corners.len() - first;
+                let n = c.corners[0].len() - first;
                 if n < 3 {
                     return Err((line, format!("a face has {n} vertices; a face needs at least three")));
                 }
                 let narrow = |x: usize| u32::try_from(x).map_err(|_| (line, "too much data in one line of the OBJ file".to_string()));
-                c.face_end.push(narrow(c.corners.len())?);
+                c.face_end.push(narrow(c.corners[0].len())?);
                 c.face_line.push(narrow(line)?);
-                c.counts_at_face.push([narrow(c.positions.len())?, narrow(c.texcoords.len())?, narrow(c.normals.len())?]);
+                narrow(c.positions.len().max(c.texcoords.len()).max(c.normals.len()))?;
             }
             _ => {}
         }
@@ -293,7 +332,7 @@ fn assemble_obj(mut chunks: Vec<(usize, ObjChunk)>) -> Result<RawMesh, (usize, S
     use rayon::prelude::*;
     let total = |f: fn(&ObjChunk) -> usize| chunks.iter().map(|(_, c)| f(c)).sum::<usize>();
     let (n_pos, n_tex, n_nrm) = (total(|c| c.positions.len()), total(|c| c.texcoords.len()), total(|c| c.normals.len()));
-    let n_tris = total(|c| c.corners.len()) - 2 * total(|c| c.face_end.len());
+    let n_tris = total(|c| c.corners[0].len()) - 2 * total(|c| c.face_end.len());
     let all_uv = chunks.iter().all(|(_, c)| c.all_uv);
     let all_n = chunks.iter().all(|(_, c)| c.all_n);
     // Resolve: positive indices against the whole file, negative ones
@@ -311,32 +350,56 @@ fn assemble_obj(mut chunks: Vec<(usize, ObjChunk)>) -> Result<RawMesh, (usize, S
         let c = &chunks[k - 1].1;
         before[k] = [before[k - 1][0] + c.positions.len(), before[k - 1][1] + c.texcoords.len(), before[k - 1][2] + c.normals.len()];
     }
-    // Resolved in place: each corner becomes three 0-based indices.
+    let totals = [n_pos, n_tex, n_nrm];
+    let names = ["vertex", "texture coordinate", "normal"];
+    let used = [true, all_uv, all_n];
+    // Resolved in place: each corner's indices become 0-based. Per chunk,
+    // the first error by line: the stored indices face by face, then the
+    // ones kept aside (whose line comes from their face).
     let resolved: Vec<Result<(), (usize, String)>> = chunks
         .par_iter_mut()
         .zip(&before)
         .map(|((line0, c), b)| {
-            let mut start = 0;
-            let ObjChunk { corners, wide, face_end, face_line, counts_at_face, .. } = c;
-            for ((&end, &line), counts) in face_end.iter().zip(face_line.iter()).zip(counts_at_face.iter()) {
-                let line = *line0 + line as usize;
-                let counts = counts.map(|x| x as usize);
-                for k in start..end as usize {
-                    let raw = |slot: usize| -> i64 {
-                        let x = corners[k][slot];
-                        if x == WIDE { wide.iter().find(|w| (w.0, w.1) == (k, slot)).map_or(i64::MIN, |w| w.2) } else { x as i32 as i64 }
+            let ObjChunk { corners, far, face_end, face_line, .. } = c;
+            let line_of = |corner: usize| *line0 + face_line[face_end.partition_point(|&e| e as usize <= corner)] as usize;
+            let mut first: Option<(usize, String)> = None;
+            for slot in (0..3).filter(|&s| used[s]) {
+                let list = &mut corners[slot];
+                for (k, x) in list.iter_mut().enumerate() {
+                    *x = match *x {
+                        ObjIndex::FAR => continue,
+                        x if x & ObjIndex::REL != 0 => (b[slot] + (x & !ObjIndex::REL) as usize) as u32,
+                        x => match resolve(x as i64, totals[slot], 0, names[slot], 0) {
+                            Ok(r) => r,
+                            Err((_, e)) => {
+                                let line = line_of(k);
+                                if first.as_ref().is_none_or(|f| line < f.0) {
+                                    first = Some((line, e));
+                                }
+                                break;
+                            }
+                        },
                     };
-                    let (v, vt, vn) = (raw(0), raw(1), raw(2));
-                    let v = resolve(v, n_pos, b[0] + counts[0], "vertex", line)?;
-                    let vt = if vt == 0 { u32::MAX } else { resolve(vt, n_tex, b[1] + counts[1], "texture coordinate", line)? };
-                    let vn = if vn == 0 { u32::MAX } else { resolve(vn, n_nrm, b[2] + counts[2], "normal", line)? };
-                    corners[k] = [v, if all_uv { vt } else { u32::MAX }, if all_n { vn } else { u32::MAX }];
                 }
-                start = end as usize;
+            }
+            for f in far.iter().filter(|f| used[f.slot as usize]) {
+                let slot = f.slot as usize;
+                // A negative index counts back from the list's length at its face.
+                let so_far = f.rel.map_or(0, |rel| (b[slot] as i64 + rel - f.written) as usize);
+                match resolve(f.written, totals[slot], so_far, names[slot], 0) {
+                    Ok(r) => corners[slot][f.corner as usize] = r,
+                    Err((_, e)) => {
+                        let line = line_of(f.corner as usize);
+                        if first.as_ref().is_none_or(|g| line < g.0) {
+                            first = Some((line, e));
+                        }
+                        break;
+                    }
+                }
             }
             *face_line = vec![];
-            *counts_at_face = vec![];
-            Ok(())
+            *far = vec![];
+            first.map_or(Ok(()), Err)
         })
         .collect();
     for r in resolved {
@@ -355,13 +418,14 @@ fn assemble_obj(mut chunks: Vec<(usize, ObjChunk)>) -> Result<RawMesh, (usize, S
     let mut map: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
     let mut ids = vec![];
     for (_, c) in chunks.iter_mut() {
-        let corners = std::mem::take(&mut c.corners);
+        let [cv, ct, cn] = std::mem::take(&mut c.corners);
         let mut start = 0;
         for &end in &c.face_end {
             let end = end as usize;
             ids.clear();
-            for &key in &corners[start..end] {
-                let [v, vt, vn] = key;
+            for k in start..end {
+                let (v, vt, vn) = (cv[k], if all_uv { ct[k] } else { u32::MAX }, if all_n { cn[k] } else { u32::MAX });
+                let key = [v, vt, vn];
                 let new = out.positions.len() as u32;
                 let id = if by_position.is_empty() {
                     *map.entry(key).or_insert(new)
@@ -940,6 +1004,39 @@ mod tests {
             }
         }
         assert_eq!(parse_obj(&(mid + "v 1 2 oops\n")).unwrap_err().0, lines / 2 + 2);
+    }
+
+    /// Every form a face index is kept in while the pieces are parsed:
+    /// absolute, negative within the piece, negative reaching back into an
+    /// earlier piece, too large; texture coordinates some faces lack are
+    /// dropped; errors name their line and the index as written.
+    #[test]
+    fn obj_index_forms_across_pieces() {
+        let n = 120_000usize;
+        let mut text = String::new();
+        for k in 0..n {
+            text += &format!("v {k} {} 0.25\n", k % 17);
+        }
+        text += "vt 0.5 0.5\nvt 0.25 0.75\n";
+        assert!(text.len() > 3 << 19, "several pieces ({} bytes)", text.len());
+        let faces = ["f 1/1 2/2 3/1", "f -1 -2 -3", &format!("f -{n} -{} {}", n - 1, n / 2), "f 5 -7 9"];
+        let head_lines = text.lines().count();
+        for f in faces {
+            text += f;
+            text += "\n";
+        }
+        let m = parse_obj(&text).unwrap();
+        assert!(m.uvs.is_none(), "not every face has texture coordinates");
+        let p = |t: usize, k: usize| m.positions[m.triangles[t][k] as usize].x as usize;
+        let expect = [[0, 1, 2], [n - 1, n - 2, n - 3], [0, 1, n / 2 - 1], [4, n - 7, 8]];
+        for (t, e) in expect.iter().enumerate() {
+            assert_eq!([p(t, 0), p(t, 1), p(t, 2)], *e, "face {t}");
+        }
+        for (bad, what) in [(format!("f 1 2 -{}", n + 1), format!("-{}", n + 1)), ("f 1 4000000000 2".to_string(), "4000000000".into()), (format!("f 1 2 {}", n + 1), format!("{}", n + 1))] {
+            let e = parse_obj(&(text.clone() + &bad + "\n" + "f 1 2 3\n")).unwrap_err();
+            assert_eq!(e.0, head_lines + faces.len() + 1, "{bad}: {}", e.1);
+            assert!(e.1.contains("out of bounds") && e.1.contains(&format!("vertex {what},")), "{bad}: {}", e.1);
+        }
     }
 
     #[test]

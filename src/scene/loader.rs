@@ -419,8 +419,11 @@ impl Loader {
                     .with_choices(&["area", "point", "spot", "constant", "envmap", "directional"]));
             }
         }
+        let mut accel = Accel::build_instanced(&self.shapes, &self.top_shapes, &self.groups, &self.instances);
+        // Big meshes renumbered in the BVH's leaf order, before the mesh
+        // attribute tables and the emitters' samplers read them.
+        accel.store_meshes_in_leaf_order(&mut self.shapes);
         self.resolve_mesh_attributes()?;
-        let accel = Accel::build_instanced(&self.shapes, &self.top_shapes, &self.groups, &self.instances);
         // Unless the integrator names one: bvh, or for light paths (which
         // start with no shading point to weigh emitters by) power.
         let light_sampling = self.light_sampling.get().unwrap_or(match integrator {
