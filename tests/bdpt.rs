@@ -192,6 +192,34 @@ fn exact_across_threads_and_passes() {
     }
 }
 
+/// Emitters at infinity start light subpaths too (on the disk of the
+/// scene's bounding sphere), weighted against s = 0 (the camera subpath
+/// leaving the scene) and s = 1: tests/scenes/sky-sun-glass.xml lit by its
+/// constant sky alone (the glass sphere's caustic, the sky seen through
+/// it), and by its directional sun alone (the glass sphere made diffuse: a
+/// path tracer cannot find a delta sun through glass), agrees with `path`;
+/// light subpaths carry light of their own (the t = 1 strategies).
+#[test]
+fn sky_and_sun_match_path() {
+    let scene = "tests/scenes/sky-sun-glass.xml";
+    let from = r#"<integrator type="path">"#;
+    let sky_bdpt = swap(scene, from, BDPT);
+    let sky_path = std::fs::read_to_string(repo(scene)).expect("scene");
+    let glass = r#"<bsdf type="dielectric"><float name="int_ior" value="1.5"/></bsdf>"#;
+    let diffuse = r#"<bsdf type="diffuse"><rgb name="reflectance" value="0.6"/></bsdf>"#;
+    let (sun_bdpt, sun_path) = (sky_bdpt.replace(glass, diffuse), sky_path.replace(glass, diffuse));
+    for (name, text_bdpt, text_path, list) in [("sky", &sky_bdpt, &sky_path, [("res", "64"), ("sun", "0")]), ("sun", &sun_bdpt, &sun_path, [("res", "64"), ("sky", "0")])] {
+        let a = passes_of::<Rgb>(scene, text_bdpt, &list, 16, 4);
+        let b = passes_of::<Rgb>(scene, text_path, &list, 16, 8);
+        assert_agree(&format!("{name} bdpt vs path"), &a, &b, 16, 0.02);
+        let light = text_bdpt.replace(BDPT, r#"<integrator type="bdpt"><integer name="strategy_t" value="1"/>"#);
+        let image = snell::render::<Rgb>(&load(scene, &light, &[("res", "32"), ("spp", "4"), list[1]]), &RenderOptions::default()).expect("render").0;
+        let (m, full) = (mean(&image), mean(&average(&a)));
+        eprintln!("{name}: light image {m:?} of {full:?}");
+        assert!(m[1] > 2e-3 * full[1], "{name}: light subpaths carry no light");
+    }
+}
+
 fn load_error(text: &str) -> String {
     match snell::load_str(Path::new("bdpt.xml"), text, &LoadOptions::default()) {
         Ok(_) => panic!("should fail:\n{text}"),

@@ -36,7 +36,8 @@
 //! renders of one map differ there, by 15 % in blue at a sky/ground edge of
 //! the test map; Snell follows Mitsuba's spectral variant). Emission is
 //! unpolarized.
-//! Light paths cannot start on it (`ptracer` refuses it, as `constant`).
+//! Light paths (`ptracer`, `bdpt`) start on it from the disk of the scene's
+//! bounding sphere facing a direction it samples ([`super::Emitter::sample_ray`]).
 //!
 //! ```xml
 //! <emitter type="envmap">

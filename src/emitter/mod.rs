@@ -172,18 +172,57 @@ impl Emitter {
     }
 
     /// Starts a light path on this emitter: a point and a direction leaving
-    /// it (the emitter's selection not included). `None` for emitters a light
-    /// path cannot start from (those at infinity, which would need the
-    /// scene's bounds; the loader refuses them with `ptracer`).
+    /// it (the emitter's selection not included). `None` if nothing is
+    /// emitted there.
+    ///
+    /// Emitters at infinity (`constant`, `envmap`, `directional`) pick the
+    /// direction the light arrives from as [`Emitter::sample_direction`]
+    /// does (by `u_dir`; the directional light has one), then a point
+    /// uniform (by `u_pos`) on the disk of the scene's bounding sphere
+    /// ([`scene_bounding_sphere`]) facing it, one radius before its centre,
+    /// as Mitsuba 3 does: `pdf_pos` = 1/(π R²) per unit area of the disk,
+    /// `pdf_dir` the direction's solid-angle density (1 for the directional
+    /// light), `weight` = L / (pdf_dir · pdf_pos) (E π R² for the
+    /// directional light), `n` zero and no `position_weight` (the disk is
+    /// not seen). Every ray from the disk crosses the whole scene.
     pub fn sample_ray<S: Spectrum>(&self, scene: &Scene, u_pos: Vec2, u_dir: Vec2, wl: &S::Wavelengths) -> Option<EmissionSample<S>> {
         match self {
             Emitter::Area(a) => a.sample_ray(scene, u_pos, u_dir, wl),
             Emitter::Point(e) => Some(e.sample_ray(u_dir, wl)),
             Emitter::Spot(e) => e.sample_ray(u_dir, wl),
             Emitter::Projector(e) => e.sample_ray(u_dir, wl),
-            Emitter::Constant(_) | Emitter::Directional(_) | Emitter::EnvMap(_) => None,
+            Emitter::Constant(_) | Emitter::Directional(_) | Emitter::EnvMap(_) => {
+                let (center, radius) = scene_bounding_sphere(scene);
+                let es = self.sample_direction::<S>(scene, center, u_dir, wl)?;
+                let pdf_dir = if es.delta { 1.0 } else { es.pdf };
+                if !(pdf_dir > 0.0) || es.weight.is_zero() {
+                    return None;
+                }
+                Some(infinite_emission(center, radius, -es.d, u_pos, es.weight, pdf_dir))
+            }
         }
     }
+}
+
+/// The sphere around the scene that light paths from emitters at infinity
+/// start on (centre, radius): the bounding box's, its radius enlarged a
+/// little so that the disk clears every shape.
+pub fn scene_bounding_sphere(scene: &Scene) -> (Vec3, f32) {
+    let (lo, hi) = scene.accel.bounds(&scene.shapes);
+    let r = 0.5 * (hi - lo).length();
+    (0.5 * (lo + hi), (r * (1.0 + 1e-3)).max(1e-4))
+}
+
+/// A light path from infinity travelling along the unit `d`: from a point
+/// uniform on the disk of radius `radius` through `center` perpendicular to
+/// `d`, moved back by `radius`; `weight` is the arriving radiance over the
+/// direction's density (the irradiance for a delta direction).
+fn infinite_emission<S: Spectrum>(center: Vec3, radius: f32, d: Vec3, u_pos: Vec2, weight: S, pdf_dir: f32) -> EmissionSample<S> {
+    let disk = crate::math::sampling::square_to_uniform_disk_concentric(u_pos);
+    let frame = crate::math::Frame::from_normal(d);
+    let o = center + radius * (frame.to_world(Vec3::new(disk.x, disk.y, 0.0)) - d);
+    let area = std::f32::consts::PI * radius * radius;
+    EmissionSample { ray: Ray::new(o, d), p: o, n: Vec3::ZERO, weight: weight * area, position_weight: None, pdf_pos: 1.0 / area, pdf_dir }
 }
 
 /// Emitter sample of a light at the single point `position` seen from `p`:

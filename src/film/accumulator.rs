@@ -339,6 +339,9 @@ impl Sink {
             return;
         }
         let SplatFootprint { x0, y0, nx, ny, wx, wy } = SplatFootprint::new(filter, pos);
+        // value / mass in fixed point, recomputed only where the mass changes
+        // (it is the same for every pixel away from the window's border).
+        let (mut last_mass, mut v) = (f32::NAN, [0i64; 3]);
         for j in 0..ny {
             let py = y0 + j as i32;
             let (y, wy) = (py - self.y0, wy[j]);
@@ -355,10 +358,14 @@ impl Sink {
                 if !(mass > 0.0) {
                     continue;
                 }
+                if mass.to_bits() != last_mass.to_bits() {
+                    last_mass = mass;
+                    v = [fixed_value(value[0] / mass), fixed_value(value[1] / mass), fixed_value(value[2] / mass)];
+                }
                 let w = fixed_weight(wx[i] * wy);
                 let at = (y as usize * self.width + x as usize) * self.stride + self.splat_offset;
-                for (d, c) in self.data[at..at + 3].iter_mut().zip(0..3) {
-                    *d = d.saturating_add(term(w, fixed_value(value[c] / mass)));
+                for (d, &q) in self.data[at..at + 3].iter_mut().zip(&v) {
+                    *d = d.saturating_add(term(w, q));
                 }
             }
         }

@@ -39,11 +39,18 @@
 //! roulette from depth `rr_depth` on. A dispersive BSDF met on either
 //! subpath cuts the sample down to its hero wavelength.
 //!
-//! Emitters: light subpaths start on `area`, `point` and `spot` emitters.
-//! Environment (`constant`, `envmap`) and `directional` emitters light the
-//! scene through s = 0 and s = 1 only (weighted against each other as in
-//! `path`); a `projector` is refused. Sensor: `perspective`. Modes: `rgb`
-//! and `spectral` (the polarized modes are refused).
+//! Emitters: light subpaths start on `area`, `point`, `spot` emitters and
+//! on those at infinity (`constant`, `envmap`, `directional`): these send
+//! their subpaths from the disk of the scene's bounding sphere facing the
+//! direction they sample ([`Emitter::sample_ray`]), as pbrt-v4 does. Their
+//! vertex is a direction: its densities are per unit solid angle (the
+//! emitter's choice times its direction density from the light's side,
+//! the BSDF's from the camera's), and the next vertex's density from the
+//! light's side is the disk's 1/(π R²) times the cosine there; the
+//! strategies s = 0 (a camera subpath leaving the scene), s = 1 and s ≥ 2
+//! are weighted against each other with these. A `projector` is refused.
+//! Sensor: `perspective`. Modes: `rgb` and `spectral` (the polarized modes
+//! are refused).
 //!
 //! | parameter | type | default | meaning |
 //! |---|---|---|---|
@@ -72,7 +79,7 @@ use crate::geometry::ray::offset_origin;
 use crate::geometry::{Ray, SurfaceInteraction};
 use crate::integrator::ptracer::shading_correction;
 use crate::math::sampling::uniform_cone_pdf;
-use crate::math::{SHADOW_EPSILON, mis_power};
+use crate::math::SHADOW_EPSILON;
 use crate::sampler::Sampler;
 use crate::scene::Scene;
 use crate::sensor::Perspective;
@@ -101,6 +108,12 @@ enum Kind {
     Camera,
     /// A point on emitter `index` (the first vertex of a light subpath).
     Light(usize),
+    /// Emitter `index` at infinity (`constant`, `envmap`, `directional`):
+    /// `ns` is the direction its light travels in; `p` is a point of no
+    /// meaning (the start of a light subpath on the scene's disk). Its
+    /// densities are per unit solid angle (of `ns`), and the vertex after
+    /// it has the disk's density 1/(π R²) projected on its surface.
+    Infinite(usize),
     /// A point on a surface.
     Surface,
 }
@@ -191,6 +204,23 @@ fn emission_pdf(scene: &Scene, e: usize, ns: Vec3, d: Vec3) -> f32 {
     }
 }
 
+/// Density with which a light subpath starts from emitter `e` at infinity
+/// with its light travelling along `-towards`: its choice times the
+/// solid-angle density of the direction (1 for a directional light's).
+fn infinite_origin_pdf(scene: &Scene, e: usize, towards: Vec3) -> f32 {
+    let pmf = scene.lights.pmf_emission(e);
+    let emitter = &scene.emitters[e];
+    if emitter.is_delta() { pmf } else { pmf * emitter.pdf_direction(scene, Vec3::ZERO, crate::emitter::Arrival::Escaped(towards)) }
+}
+
+/// Density per unit area with which a light subpath from infinity (along
+/// `d`) reaches `v`: the disk's 1/(π R²), projected on `v`'s surface.
+fn infinite_area_pdf<S>(scene: &Scene, d: Vec3, v: &Vertex<S>) -> f32 {
+    let r = crate::emitter::scene_bounding_sphere(scene).1;
+    let p = 1.0 / (PI * r * r);
+    if v.ng != Vec3::ZERO { p * v.ng.dot(d).abs() } else { p }
+}
+
 /// Density with which a light subpath starts at a point of emitter `e`:
 /// its choice times the area density (area lights sample uniformly by area).
 fn origin_pdf(scene: &Scene, e: usize) -> f32 {
@@ -204,8 +234,12 @@ fn origin_pdf(scene: &Scene, e: usize) -> f32 {
     }
 }
 
-/// `pdf` (per unit solid angle at `from`) as a density per unit area at `to`.
+/// `pdf` (per unit solid angle at `from`) as a density per unit area at `to`
+/// (as it is, per unit solid angle, for a vertex at infinity).
 fn to_area<S>(pdf: f32, from: Vec3, to: &Vertex<S>) -> f32 {
+    if matches!(to.kind, Kind::Infinite(_)) {
+        return pdf;
+    }
     let v = to.p - from;
     let d2 = v.length_squared();
     if !(d2 > 0.0) {
@@ -246,22 +280,36 @@ impl<S: Spectrum> Vertex<S> {
     }
 
     fn is_delta_light(&self, scene: &Scene) -> bool {
-        matches!(self.kind, Kind::Light(e) if scene.emitters[e].is_delta())
+        matches!(self.kind, Kind::Light(e) | Kind::Infinite(e) if scene.emitters[e].is_delta())
+    }
+
+    /// Unit direction from this vertex towards `to` (towards the emitter
+    /// for a vertex at infinity).
+    fn direction_to(&self, to: &Vertex<S>) -> Vec3 {
+        match (self.kind, to.kind) {
+            (_, Kind::Infinite(_)) => -to.ns,
+            (Kind::Infinite(_), _) => self.ns,
+            _ => (to.p - self.p).normalize_or_zero(),
+        }
     }
 
     /// Area density at `next` with which this vertex, reached from `prev`,
     /// samples `next` in transport `mode`.
     fn pdf(&self, c: &Ctx<S>, prev: Option<&Vertex<S>>, next: &Vertex<S>, mode: TransportMode) -> f32 {
-        let w = (next.p - self.p).normalize_or_zero();
+        if matches!(self.kind, Kind::Infinite(_)) {
+            return infinite_area_pdf(c.scene, self.ns, next);
+        }
+        let w = self.direction_to(next);
         if w == Vec3::ZERO {
             return 0.0;
         }
         let solid = match self.kind {
             Kind::Camera => camera_pdf(c.camera, w),
             Kind::Light(e) => emission_pdf(c.scene, e, self.ns, w),
+            Kind::Infinite(_) => 0.0,
             Kind::Surface => {
                 let (Some(si), Some(prev)) = (&self.si, prev) else { return 0.0 };
-                let wp = (prev.p - self.p).normalize_or_zero();
+                let wp = self.direction_to(prev);
                 let ctx = BsdfContext { mode, ..self.ctx };
                 c.scene.bsdf(si).pdf::<S>(&ctx, si, si.to_local(wp), si.to_local(w), c.wl)
             }
@@ -331,16 +379,17 @@ impl Bdpt {
             if let Some((e, pmf, _)) = scene.lights.select_emission(light_sampler.next_1d()) {
                 let (u_pos, u_dir) = (light_sampler.next_2d(), light_sampler.next_2d());
                 if let Some(em) = scene.emitters[e].sample_ray::<S>(scene, u_pos, u_dir, wl) {
+                    let infinite = em.position_weight.is_none() && matches!(scene.emitters[e], Emitter::Constant(_) | Emitter::EnvMap(_) | Emitter::Directional(_));
                     light.push(Vertex {
-                        kind: Kind::Light(e),
+                        kind: if infinite { Kind::Infinite(e) } else { Kind::Light(e) },
                         p: em.p,
                         ng: em.n,
-                        ns: em.n,
+                        ns: if infinite { em.ray.d } else { em.n },
                         si: None,
                         ctx: BsdfContext::IMPORTANCE,
                         beta: S::zero(),
                         delta: false,
-                        pdf_fwd: origin_pdf(scene, e),
+                        pdf_fwd: if infinite { infinite_origin_pdf(scene, e, -em.ray.d) } else { origin_pdf(scene, e) },
                         pdf_rev: 0.0,
                     });
                     let beta = em.weight / pmf;
@@ -490,7 +539,8 @@ impl Bdpt {
         }
         let value = qs.beta * f * (tr * correction * conn.importance / (conn.dist * conn.dist));
         let w = self.mis_weight(c, cam, light, Some(&cam[0]), s, 1);
-        Some((conn.film, value * w))
+        // (A zero-weight splat would add nothing.)
+        (w > 0.0).then(|| (conn.film, value * w))
     }
 
     /// Strategy (s, t), t ≥ 2: the pixel estimate's share.
@@ -534,9 +584,22 @@ impl Bdpt {
             }
             let value = pt.beta * f * es.weight * (tr / pmf);
             let w = match es.p {
-                // Emitters at infinity: against the camera subpath escaping (s = 0).
-                None if es.delta || !self.mis => 1.0,
-                None => mis_power(es.pdf * pmf, bsdf.pdf::<S>(&pt.ctx, si, si.wi, wo, c.wl)),
+                // Emitters at infinity: a vertex along the direction.
+                None => {
+                    let sampled = Vertex {
+                        kind: Kind::Infinite(e),
+                        p: si.p + es.d,
+                        ng: Vec3::ZERO,
+                        ns: -es.d,
+                        si: None,
+                        ctx: BsdfContext::IMPORTANCE,
+                        beta: S::zero(),
+                        delta: false,
+                        pdf_fwd: infinite_origin_pdf(scene, e, es.d),
+                        pdf_rev: 0.0,
+                    };
+                    self.mis_weight(c, cam, light, Some(&sampled), 1, t)
+                }
                 Some(p) => {
                     let sampled = Vertex {
                         kind: Kind::Light(e),
@@ -585,20 +648,37 @@ impl Bdpt {
         value * self.mis_weight(c, cam, light, None, s, t)
     }
 
-    /// The camera subpath left the scene: an environment emitter's light,
-    /// weighted against emitter sampling (s = 1) at its last vertex.
-    fn escaped<S: Spectrum>(&self, c: &Ctx<S>, cam: &[Vertex<S>], esc: &Escape<S>) -> S {
+    /// The camera subpath left the scene: an environment emitter's light
+    /// (strategy s = 0), weighted against every other strategy (emitter
+    /// sampling at its last vertex, light subpaths from the environment).
+    /// Appends the vertex at infinity to `cam`.
+    fn escaped<S: Spectrum>(&self, c: &Ctx<S>, cam: &mut Vec<Vertex<S>>, esc: &Escape<S>) -> S {
         let t = cam.len() + 1;
         if (t == 2 && self.hide_emitters) || !self.kept(0, t) {
             return S::zero();
         }
-        let Some(le) = c.scene.environment_radiance::<S>(esc.d, c.wl) else { return S::zero() };
-        let last = cam[cam.len() - 1].si.as_ref();
-        let w = match last {
-            Some(si) if !esc.delta && self.mis && self.sample_direct => mis_power(esc.pdf, c.scene.pdf_environment(&ShadingPoint::from(si), esc.d)),
-            _ => 1.0,
+        let (Some(env), Some(le)) = (c.scene.environment, c.scene.environment_radiance::<S>(esc.d, c.wl)) else { return S::zero() };
+        let last = &cam[cam.len() - 1];
+        let v = Vertex {
+            kind: Kind::Infinite(env as usize),
+            p: last.p + esc.d,
+            ng: Vec3::ZERO,
+            ns: -esc.d,
+            si: None,
+            ctx: BsdfContext::RADIANCE,
+            beta: esc.beta,
+            delta: false,
+            pdf_fwd: if esc.delta { 0.0 } else { esc.pdf },
+            pdf_rev: 0.0,
         };
-        esc.beta * le * w
+        // The vertex before the last one as reached from the escape (as `walk` keeps it).
+        let n = cam.len();
+        if n >= 2 && !last.delta {
+            let rev = last.pdf(c, Some(&v), &cam[n - 2], TransportMode::Importance);
+            cam[n - 2].pdf_rev = rev;
+        }
+        cam.push(v);
+        esc.beta * le * self.mis_weight(c, cam, &[], None, 0, t)
     }
 
     /// The power-heuristic weight of strategy (s, t) for the path it made;
@@ -622,13 +702,15 @@ impl Bdpt {
         // dropped); the reverse densities of the two vertices at each end
         // are those of this path.
         let emitter_at_pt = if s == 0 { pt.emitter(scene) } else { None };
-        let pt_rev = match qs {
-            Some(q) => q.pdf(c, qs_minus, pt, TransportMode::Importance),
-            None => emitter_at_pt.map_or(0.0, |e| origin_pdf(scene, e)),
+        let pt_rev = match (qs, pt.kind) {
+            (Some(q), _) => q.pdf(c, qs_minus, pt, TransportMode::Importance),
+            (None, Kind::Infinite(e)) => infinite_origin_pdf(scene, e, -pt.ns),
+            (None, _) => emitter_at_pt.map_or(0.0, |e| origin_pdf(scene, e)),
         };
-        let pt_minus_rev = pt_minus.map_or(0.0, |pm| match qs {
-            Some(q) => pt.pdf(c, Some(q), pm, TransportMode::Importance),
-            None => emitter_at_pt.map_or(0.0, |e| to_area(emission_pdf(scene, e, pt.ns, (pm.p - pt.p).normalize_or_zero()), pt.p, pm)),
+        let pt_minus_rev = pt_minus.map_or(0.0, |pm| match (qs, pt.kind) {
+            (Some(q), _) => pt.pdf(c, Some(q), pm, TransportMode::Importance),
+            (None, Kind::Infinite(_)) => pt.pdf(c, None, pm, TransportMode::Importance),
+            (None, _) => emitter_at_pt.map_or(0.0, |e| to_area(emission_pdf(scene, e, pt.ns, (pm.p - pt.p).normalize_or_zero()), pt.p, pm)),
         });
         let qs_rev = qs.map_or(0.0, |q| pt.pdf(c, pt_minus, q, TransportMode::Radiance));
         let qs_minus_rev = match (qs, qs_minus) {
@@ -710,7 +792,11 @@ mod tests {
         }
         let mut light: Vec<Vertex<Rgb>> = (0..k + 1 - t).map(|j| x[k - j]).collect();
         if let Some(y0) = light.first_mut() {
-            *y0 = Vertex { kind: Kind::Light(e), si: None, delta: false, pdf_fwd: origin_pdf(c.scene, e), pdf_rev: 0.0, ..*y0 };
+            let (kind, pdf_fwd) = match y0.kind {
+                Kind::Infinite(e) => (Kind::Infinite(e), infinite_origin_pdf(c.scene, e, -y0.ns)),
+                _ => (Kind::Light(e), origin_pdf(c.scene, e)),
+            };
+            *y0 = Vertex { kind, si: None, delta: false, pdf_fwd, pdf_rev: 0.0, ..*y0 };
         }
         let s = light.len();
         for j in 1..s {
@@ -800,5 +886,111 @@ mod tests {
         }
         eprintln!("paths with two strategies or more: {tested:?}");
         assert!(tested.iter().all(|&n| n >= 200), "too few paths tested: {tested:?}");
+    }
+
+    /// The weights of the strategies taken for `x` (the pinhole … x_k,
+    /// x_k on emitter `e`, possibly at infinity) and their sum; `None` if
+    /// fewer than two are taken.
+    fn weights_of(bdpt: &Bdpt, c: &Ctx<Rgb>, x: &[Vertex<Rgb>], e: usize) -> Option<(f64, Vec<((usize, usize), f32)>)> {
+        let k = x.len() - 1;
+        let mut sum = 0.0f64;
+        let mut weights = vec![];
+        for t in 1..=k + 1 {
+            let s = k + 1 - t;
+            let (cam, light) = split(c, x, e, t);
+            let delta_light = c.scene.emitters[e].is_delta();
+            let taken = bdpt.allowed(s, t) && !cam[t - 1].delta && (s < 2 || !light[s - 1].delta) && !(s == 0 && delta_light);
+            if !taken {
+                continue;
+            }
+            let w = match (s, t) {
+                (1, _) => bdpt.mis_weight(c, &cam, &[], Some(&light[0]), 1, t),
+                (_, 1) => bdpt.mis_weight(c, &cam, &light, Some(&cam[0]), s, 1),
+                _ => bdpt.mis_weight(c, &cam, &light, None, s, t),
+            };
+            weights.push(((s, t), w));
+            sum += w as f64;
+        }
+        (weights.len() > 1).then_some((sum, weights))
+    }
+
+    /// Paths lit from infinity: camera walks that leave an open scene
+    /// (tests/scenes/sky-sun-glass.xml) under its constant sky, and every
+    /// prefix of a walk ending at a smooth vertex continued to its
+    /// directional sun. Light subpaths start on the disk of the scene's
+    /// bounding sphere (densities 1/(π R²) at the first hit, the direction's
+    /// own at the emitter), camera subpaths escape with the BSDF's density:
+    /// the weights of the strategies taken, by every option setting, sum to
+    /// one (s = 0 is not taken for the delta sun).
+    #[test]
+    fn weights_sum_to_one_for_emitters_at_infinity() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/sky-sun-glass.xml");
+        let params = HashMap::from([("res".to_string(), "16".to_string())]);
+        let scene = load_file(&path, &LoadOptions { params, ..Default::default() }).expect("scene");
+        let crate::sensor::Camera::Perspective(camera) = &scene.camera else { panic!("perspective") };
+        let c = Ctx::<Rgb> { scene: &scene, camera, wl: &() };
+        let sky = scene.environment.expect("sky") as usize;
+        let sun = scene.emitters.iter().position(|e| matches!(e, Emitter::Directional(_))).expect("sun");
+        let Emitter::Directional(light) = &scene.emitters[sun] else { unreachable!() };
+        let mut tested = [[0usize; 2]; 4];
+        for (n, (light_image, sample_direct)) in [(true, true), (false, true), (true, false), (false, false)].into_iter().enumerate() {
+            let bdpt = Bdpt { max_depth: 7, rr_depth: 100, light_image, sample_direct, hide_emitters: false, strategy_s: None, strategy_t: None, mis: true };
+            for index in 0..12000 {
+                let (x, y) = (index % 16, index / 16 % 16);
+                let mut sampler = Sampler::start(&scene.sampler, x, y, index);
+                let pos = (Vec2::new(x as f32, y as f32) + sampler.next_2d()) / 16.0;
+                let ray = scene.camera.sample_ray(pos, &mut sampler);
+                let pinhole = Vertex {
+                    kind: Kind::Camera,
+                    p: camera.origin(),
+                    ng: Vec3::ZERO,
+                    ns: Vec3::ZERO,
+                    si: None,
+                    ctx: BsdfContext::RADIANCE,
+                    beta: Rgb::splat(1.0),
+                    delta: false,
+                    pdf_fwd: 1.0,
+                    pdf_rev: 0.0,
+                };
+                let mut walk = vec![pinhole];
+                let escape = bdpt.walk(&scene, camera, ray, Rgb::splat(1.0), camera_pdf(camera, ray.d), &mut sampler, &mut (), TransportMode::Radiance, 7, &mut walk);
+                let at_infinity = |e: usize, last: &Vertex<Rgb>, d: Vec3, pdf_fwd: f32| Vertex {
+                    kind: Kind::Infinite(e),
+                    p: last.p - d,
+                    ng: Vec3::ZERO,
+                    ns: d,
+                    si: None,
+                    ctx: BsdfContext::RADIANCE,
+                    beta: Rgb::zero(),
+                    delta: false,
+                    pdf_fwd,
+                    pdf_rev: 0.0,
+                };
+                let mut check = |x: &[Vertex<Rgb>], e: usize, which: usize| {
+                    if let Some((sum, weights)) = weights_of(&bdpt, &c, x, e) {
+                        tested[n][which] += 1;
+                        assert!((sum - 1.0).abs() < 1e-3, "light_image {light_image}, sample_direct {sample_direct}, emitter {e}: weights {weights:?} sum to {sum}");
+                    }
+                };
+                if let Some(esc) = escape.filter(|esc| !esc.delta) {
+                    let mut x = walk.clone();
+                    let last = x[x.len() - 1];
+                    x.push(at_infinity(sky, &last, -esc.d, esc.pdf));
+                    check(&x, sky, 0);
+                }
+                for k in 1..walk.len() {
+                    if walk[k].delta || !walk[k].connectible(&scene) {
+                        continue;
+                    }
+                    let mut x = walk[..=k].to_vec();
+                    x[k].delta = false;
+                    let last = x[k];
+                    x.push(at_infinity(sun, &last, light.direction, 0.0));
+                    check(&x, sun, 1);
+                }
+            }
+        }
+        eprintln!("paths with two strategies or more (sky, sun): {tested:?}");
+        assert!(tested.iter().all(|t| t.iter().all(|&n| n >= 200)), "too few paths tested: {tested:?}");
     }
 }

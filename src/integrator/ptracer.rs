@@ -24,9 +24,14 @@
 //! | `samples_per_pass` | integer | — | accepted for Mitsuba compatibility (scheduling only) |
 //! | `light_sampling` | string | `power` | emitter a light path starts on: `power` (by flux) or `uniform` (as Mitsuba) |
 //!
-//! Emitters: `area`, `point`, `spot` (a path has to start somewhere finite);
-//! sensor: `perspective` (a pinhole can be connected to; an orthographic
-//! camera cannot).
+//! Emitters: all but the projector's own `sample_ray` limits. Emitters at
+//! infinity (`constant`, `envmap`, `directional`) start their paths on the
+//! disk of the scene's bounding sphere facing the direction they sample
+//! ([`crate::emitter::Emitter::sample_ray`]), as Mitsuba 3 does; an
+//! environment seen directly is splatted along that same direction from
+//! the pinhole (its radiance over the direction's density). Sensor:
+//! `perspective` (a pinhole can be connected to; an orthographic camera
+//! cannot).
 //!
 //! ```xml
 //! <integrator type="ptracer"><integer name="max_depth" value="8"/></integrator>
@@ -57,7 +62,16 @@ impl ParticleTracer {
         let Camera::Perspective(camera) = &scene.camera else { return };
         let (width, height) = (scene.film.width, scene.film.height);
         let size = Vec2::new(width as f32, height as f32);
-        let Some(em) = scene.sample_emission::<S>(sampler.next_1d(), sampler.next_2d(), sampler.next_2d(), wl) else { return };
+        let (u_pick, u_pos, u_dir) = (sampler.next_1d(), sampler.next_2d(), sampler.next_2d());
+        let Some(em) = scene.sample_emission::<S>(u_pick, u_pos, u_dir, wl) else { return };
+
+        // An environment seen directly: the direction its light path arrives
+        // from (the same for every point), seen from the pinhole.
+        if em.position_weight.is_none() && !self.hide_emitters && self.max_depth >= 1 {
+            if let Some((e, pmf, _)) = scene.lights.select_emission(u_pick).filter(|(e, _, _)| scene.emitters[*e].is_environment()) {
+                self.splat_environment::<S>(scene, camera, e, pmf, u_dir, wl, splat);
+            }
+        }
 
         // Emitters seen directly: the emitting point itself, one segment.
         if let Some(position_weight) = em.position_weight.filter(|_| !self.hide_emitters && self.max_depth >= 1) {
@@ -127,6 +141,25 @@ impl ParticleTracer {
                 }
                 beta *= 1.0 / q;
             }
+        }
+    }
+
+    /// Environment emitter `e` (chosen with probability `pmf`) seen from
+    /// the pinhole along the direction it samples for `u_dir`: its radiance
+    /// over the direction's density, times the camera's importance there.
+    #[allow(clippy::too_many_arguments)]
+    fn splat_environment<S: Spectrum>(&self, scene: &Scene, camera: &crate::sensor::Perspective, e: usize, pmf: f32, u_dir: Vec2, wl: &S::Wavelengths, splat: &mut impl FnMut(Vec2, Rgb)) {
+        let eye = camera.origin();
+        let Some(es) = scene.emitters[e].sample_direction::<S>(scene, eye, u_dir, wl) else { return };
+        if es.delta || !(es.pdf > 0.0) || es.weight.is_zero() {
+            return;
+        }
+        let dist = 1.0f32.clamp(camera.near_clip, camera.far_clip);
+        let Some(c) = camera.connect(eye + es.d * dist, scene.film.width, scene.film.height) else { return };
+        let tr = scene.transmittance(&Ray { o: eye, d: es.d, tmax: f32::INFINITY });
+        if tr > 0.0 {
+            let value: S = es.weight * (tr * c.importance / pmf);
+            splat(c.film * Vec2::new(scene.film.width as f32, scene.film.height as f32), value.to_rgb(wl));
         }
     }
 

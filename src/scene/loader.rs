@@ -397,19 +397,9 @@ impl Loader {
                 return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic or thin-lens camera)")
                     .with_choices(&["perspective"]));
             }
-            if let Some(e) = self.emitters.iter().find(|e| matches!(e, Emitter::Constant(_) | Emitter::Directional(_) | Emitter::EnvMap(_))) {
-                let kind = match e {
-                    Emitter::Constant(_) => "constant",
-                    Emitter::EnvMap(_) => "envmap",
-                    _ => "directional",
-                };
-                return Err(SceneError::at(loc, format!("ptracer cannot start light paths on a \"{kind}\" emitter; use the path integrator"))
-                    .with_choices(&["area", "point", "spot", "projector"]));
-            }
         }
         if let (Integrator::Bdpt(_), Some(loc)) = (&integrator, &integrator_loc) {
-            // Light subpaths end in a pinhole; they start on finite emitters,
-            // and the emitters at infinity light through s = 0 and s = 1.
+            // Light subpaths end in a pinhole.
             if !matches!(camera, Camera::Perspective(_)) {
                 return Err(SceneError::at(loc, "bdpt needs a perspective sensor (light subpaths cannot be connected to an orthographic or thin-lens camera)")
                     .with_choices(&["perspective"]));
