@@ -157,19 +157,28 @@ fn bvh_prefers_near_lights() {
 }
 
 /// The image of every strategy against Mitsuba's, block by block;
-/// `ref_rel_err` is the reference's relative error per 16×16 block
-/// (tests/references/README.md gives it per pixel: 1.7e-2 for
-/// many-lights, 6.1e-3 for light-mix, over √256 pixels).
+/// the reference's error per 16×16 block is its stored standard errors'
+/// (`<reference>.stderr.exr`, many-lights) or else `ref_rel_err` relative
+/// (tests/references/README.md gives it per pixel: 6.1e-3 for light-mix,
+/// over √256 pixels).
 /// `spp` per pass for bvh; uniform and power get `noisy_spp`, so that their
 /// heavy-tailed block means (a rare, bright emitter chosen with a small
 /// probability) are near-normal in every pass.
 fn check_image(scene: &str, reference: &str, spp: u32, noisy_spp: u32, ref_rel_err: f64) {
+    let ref_stderr = reference.replace(".exr", ".stderr.exr");
+    let ref_stderr = std::path::Path::new(&repo(&ref_stderr)).exists().then(|| read_exr(&repo(&ref_stderr)).expect("reference standard errors"));
     let reference = read_exr(&repo(reference)).expect("reference EXR");
     for strategy in STRATEGIES {
         let text = with_strategy(scene, strategy);
         let spp = if strategy == "bvh" { spp } else { noisy_spp };
         let passes = render_passes(&repo(scene), Some(&text), params(&[("res", "64")]), 16, spp);
-        compare(&passes, &reference, 16, ref_rel_err).assert_unbiased(&format!("{scene} ({strategy})"), 0.015);
+        // The reference's own noise block by block where its standard
+        // errors are stored, else `ref_rel_err` of every block's mean.
+        let cmp = match &ref_stderr {
+            Some(e) => compare_with_reference_noise(&passes, &reference, e, 16),
+            None => compare(&passes, &reference, 16, ref_rel_err),
+        };
+        cmp.assert_unbiased(&format!("{scene} ({strategy})"), 0.015);
     }
 }
 

@@ -11,6 +11,11 @@
 //! solid-angle pdf by ‖x'' − x'‖² / cos θ'' (spheres are sampled by solid
 //! angle directly).
 //!
+//! On a rectangle, direct lighting from the integrators (`Scene::sample_emitter`)
+//! samples by solid angle instead where the light is large as seen from the
+//! shading point ([`super::sphrect`]); light paths and `bdpt`, which reason
+//! in area densities, keep sampling by area.
+//!
 //! A textured radiance (e.g. a `bitmap` or `checkerboard`, uplifted as an
 //! illuminant in spectral modes) is still sampled by area; the uv of a
 //! sampled point is found by a short ray onto the shape just in front of it.
@@ -21,6 +26,7 @@
 //! </shape>
 //! ```
 
+use super::sphrect::Rectangle;
 use super::{EmissionSample, EmitterSample};
 use crate::geometry::ray::offset_origin;
 use crate::geometry::{Ray, SurfaceInteraction};
@@ -37,6 +43,10 @@ pub struct AreaLight {
     pub radiance: Emission,
     /// A spatially varying radiance, used instead of `radiance`.
     pub texture: Option<Texture>,
+    /// The shape as a rectangle, if it is one (set by
+    /// [`AreaLight::find_rectangle`]): direct lighting samples it by solid
+    /// angle.
+    pub rect: Option<Rectangle>,
 }
 
 impl AreaLight {
@@ -86,6 +96,42 @@ impl AreaLight {
             Some(_) => self.radiance_at(self.uv_at(scene, ds.p, ds.d)?, wl),
         };
         Some(EmitterSample { d: ds.d, dist: ds.dist, p: Some(ds.p), n: ds.n, weight: radiance / ds.pdf, pdf: ds.pdf, delta: false })
+    }
+
+    /// Notes whether the light's shape (in `shapes`) is a rectangle.
+    pub fn find_rectangle(&mut self, shapes: &[crate::geometry::Shape]) {
+        self.rect = match shapes.get(self.shape as usize).map(|s| &s.geometry) {
+            Some(crate::geometry::ShapeGeometry::Mesh(m)) => Rectangle::from_mesh(m),
+            _ => None,
+        };
+    }
+
+    /// As [`AreaLight::sample_direction`], for direct lighting: by solid
+    /// angle on a rectangle where that pays (see [`super::sphrect`]).
+    #[inline]
+    pub fn sample_direct<S: Spectrum>(&self, scene: &Scene, p: Vec3, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
+        let Some((rect, sp)) = self.rect.as_ref().and_then(|r| Some((r, r.spherical(p)?))) else {
+            return self.sample_direction(scene, p, u, wl);
+        };
+        let ds = rect.sample(&sp, u)?;
+        if ds.sh_n.dot(-ds.d) <= 0.0 || self.is_black() {
+            return None;
+        }
+        let radiance: S = match &self.texture {
+            None => self.radiance.eval(wl),
+            Some(_) => self.radiance_at(self.uv_at(scene, ds.p, ds.d)?, wl),
+        };
+        Some(EmitterSample { d: ds.d, dist: ds.dist, p: Some(ds.p), n: ds.n, weight: radiance / ds.pdf, pdf: ds.pdf, delta: false })
+    }
+
+    /// Solid-angle density with which [`AreaLight::sample_direct`] from `p`
+    /// picks the point `hit` (geometric normal `n`) of the light.
+    #[inline]
+    pub fn pdf_direct(&self, scene: &Scene, p: Vec3, hit: Vec3, n: Vec3) -> f32 {
+        match self.rect.as_ref().and_then(|r| r.spherical(p)) {
+            Some(sp) => 1.0 / sp.solid_angle,
+            None => scene.shapes[self.shape as usize].pdf_direction(p, hit, n),
+        }
     }
 
     /// A point uniformly on the shape's area and a cosine-weighted direction

@@ -28,6 +28,7 @@ pub mod envmap;
 pub mod point;
 pub mod projector;
 pub mod selection;
+pub mod sphrect;
 pub mod spot;
 
 pub use area::AreaLight;
@@ -156,6 +157,28 @@ impl Emitter {
             (Emitter::Constant(_), Arrival::Escaped(_)) => constant::PDF,
             (Emitter::EnvMap(e), Arrival::Escaped(d)) => e.pdf_direction(d),
             _ => 0.0,
+        }
+    }
+
+    /// As [`Emitter::sample_direction`], for direct lighting at a shading
+    /// point (`Scene::sample_emitter`): area lights on rectangles sample by
+    /// solid angle where that pays ([`sphrect`]). Its density is
+    /// [`Emitter::pdf_direct`].
+    #[inline]
+    pub fn sample_direct<S: Spectrum>(&self, scene: &Scene, p: Vec3, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
+        match self {
+            Emitter::Area(a) => a.sample_direct(scene, p, u, wl),
+            _ => self.sample_direction(scene, p, u, wl),
+        }
+    }
+
+    /// Solid-angle density with which [`Emitter::sample_direct`] from `p`
+    /// picks the direction of `at` (0 for delta emitters).
+    #[inline]
+    pub fn pdf_direct(&self, scene: &Scene, p: Vec3, at: Arrival) -> f32 {
+        match (self, at) {
+            (Emitter::Area(a), Arrival::Surface(hit)) => a.pdf_direct(scene, p, hit.p, hit.n),
+            _ => self.pdf_direction(scene, p, at),
         }
     }
 

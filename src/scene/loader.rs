@@ -420,6 +420,11 @@ impl Loader {
             Integrator::Particle(_) => LightSampling::DEFAULT_LIGHT_PATHS,
             _ => LightSampling::DEFAULT,
         });
+        for e in &mut self.emitters {
+            if let Emitter::Area(a) = e {
+                a.find_rectangle(&self.shapes);
+            }
+        }
         let lights = LightSelector::new(light_sampling, &self.emitters, &self.shapes);
         // Included XML files first (every file some element comes from),
         // then the meshes and images in the order read.
@@ -868,7 +873,7 @@ impl Loader {
             None => return Err(SceneError::at(&node.loc, "area emitter needs \"radiance\"")),
         };
         props.finish()?;
-        self.emitters.push(Emitter::Area(AreaLight { shape, radiance, texture }));
+        self.emitters.push(Emitter::Area(AreaLight { shape, radiance, texture, rect: None }));
         Ok(self.emitters.len() as u32 - 1)
     }
 

@@ -232,7 +232,7 @@ impl Scene {
         if !(pmf > 0.0) {
             return 0.0;
         }
-        self.emitters[e as usize].pdf_direction(self, from.p, Arrival::Surface(hit)) * pmf
+        self.emitters[e as usize].pdf_direct(self, from.p, Arrival::Surface(hit)) * pmf
     }
 
     /// Density with which emitter sampling from the shading point `from`
@@ -251,7 +251,7 @@ impl Scene {
     /// the selection.
     pub fn sample_emitter<S: Spectrum>(&self, si: &SurfaceInteraction, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
         let (index, pmf, ux) = self.select_emitter(u.x, &ShadingPoint::from(si))?;
-        let mut sample = self.emitters[index].sample_direction::<S>(self, si.p, Vec2::new(ux, u.y), wl)?;
+        let mut sample = self.emitters[index].sample_direct::<S>(self, si.p, Vec2::new(ux, u.y), wl)?;
         sample.weight = sample.weight / pmf;
         sample.pdf *= pmf;
         // Shadow ray, stopping just short of the emitter's surface.
