@@ -25,6 +25,7 @@ use crate::math::mis_power;
 use crate::sampler::Sampler;
 use crate::emitter::ShadingPoint;
 use crate::scene::Scene;
+use glam::Vec3;
 use crate::spectrum::Spectrum;
 
 #[derive(Clone, Debug)]
@@ -42,7 +43,9 @@ impl PathTracer {
         let mut eta = 1.0f32;
         let mut depth = 0u32;
         // The previous vertex, for MIS of emitters hit by BSDF sampling.
-        let mut prev = ShadingPoint::at(ray.o);
+        // (p and n kept apart: copied as one struct they were stored and
+        // reloaded in pieces of other sizes, a store-forwarding stall.)
+        let (mut prev_p, mut prev_n) = (ray.o, Vec3::ZERO);
         let mut prev_pdf = 0.0f32;
         let mut prev_delta = true;
         let mut ctx = BsdfContext::RADIANCE;
@@ -50,25 +53,26 @@ impl PathTracer {
         loop {
             let hit = scene.intersect_path(&ray, self.hide_emitters && depth == 0, sampler);
             let visible = !(self.hide_emitters && depth == 0);
-            let Some(si) = hit else {
+            // By reference: the interaction stays where intersect_path wrote it.
+            let Some(si) = &hit else {
                 if visible {
                     if let Some(env) = scene.environment_radiance::<S>(ray.d, wl) {
-                        let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_environment(&prev, ray.d)) };
+                        let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_environment(&ShadingPoint { p: prev_p, n: prev_n }, ray.d)) };
                         result += throughput * env * w;
                     }
                 }
                 break;
             };
             if visible {
-                if let Some(le) = scene.emitted::<S>(&si, wl) {
-                    let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_emitter_hit(&prev, &si)) };
+                if let Some(le) = scene.emitted::<S>(si, wl) {
+                    let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_emitter_hit(&ShadingPoint { p: prev_p, n: prev_n }, si)) };
                     result += throughput * le * w;
                 }
             }
             if depth.saturating_add(1) >= self.max_depth {
                 break;
             }
-            let bsdf = scene.bsdf(&si);
+            let bsdf = scene.bsdf(si);
 
             // Past a dispersive interface the direction (and, for a rough
             // one, the value of emitter samples) holds for the hero
@@ -79,9 +83,9 @@ impl PathTracer {
 
             // Next-event estimation.
             if bsdf.lobes().intersects(Lobe::SMOOTH) {
-                if let Some(es) = scene.sample_emitter::<S>(&si, sampler.next_2d(), wl) {
+                if let Some(es) = scene.sample_emitter::<S>(si, sampler.next_2d(), wl) {
                     let wo = si.to_local(es.d);
-                    let (f, pdf): (S, f32) = bsdf.eval_pdf(&BsdfContext::RADIANCE, &si, si.wi, wo, wl);
+                    let (f, pdf): (S, f32) = bsdf.eval_pdf(&BsdfContext::RADIANCE, si, si.wi, wo, wl);
                     if !f.is_zero() {
                         let w = if es.delta { 1.0 } else { mis_power(es.pdf, pdf) };
                         result += throughput * f * es.weight * w;
@@ -90,12 +94,12 @@ impl PathTracer {
             }
 
             // Continue the path by sampling the BSDF.
-            let Some(bs) = bsdf.sample::<S>(&ctx, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
+            let Some(bs) = bsdf.sample::<S>(&ctx, si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
             ctx = ctx.following(bs.lobe);
             let d = si.to_world(bs.wo);
             throughput *= bs.weight;
             eta *= bs.eta;
-            prev = ShadingPoint::from(&si);
+            (prev_p, prev_n) = (si.p, si.frame.n);
             prev_pdf = bs.pdf;
             prev_delta = bs.lobe.intersects(Lobe::DELTA);
             ray = Ray::new(si.spawn_origin(d), d);

@@ -219,8 +219,19 @@ impl Sampler {
         Sampler { method }
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn next_1d(&mut self) -> f32 {
+        // The default sampler inline (a few integer instructions); the
+        // others out of line, so that this stays small enough to inline
+        // into the integrators.
+        if let Method::Independent(s) = &mut self.method {
+            return s.next_1d();
+        }
+        self.next_1d_patterned()
+    }
+
+    #[inline(never)]
+    fn next_1d_patterned(&mut self) -> f32 {
         match &mut self.method {
             Method::Independent(s) => s.next_1d(),
             Method::Stratified(s) => s.next_1d(),
@@ -232,8 +243,16 @@ impl Sampler {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn next_2d(&mut self) -> Vec2 {
+        if let Method::Independent(s) = &mut self.method {
+            return s.next_2d();
+        }
+        self.next_2d_patterned()
+    }
+
+    #[inline(never)]
+    fn next_2d_patterned(&mut self) -> Vec2 {
         match &mut self.method {
             Method::Independent(s) => s.next_2d(),
             Method::Stratified(s) => s.next_2d(),
