@@ -662,7 +662,7 @@ pub fn render<S: Spectrum>(
     };
     let bar = crate::render::progress_bar(options, pixels as u64 * iterations as u64);
     // The initial radius: the given one for every pixel, or each pixel's
-    // footprint at its first visible point times RADIUS_PIXELS (0 = not
+    // footprint at its first visible point times `radius_footprints` (0 = not
     // yet set), or Mitsuba 0.6's guess where the camera gives no footprint.
     let (r0, footprint) = if sppm.initial_radius > 0.0 {
         (sppm.initial_radius as f64, None)
