@@ -101,14 +101,33 @@ const SPPM: &str = r#"<integrator type="sppm">
         <integer name="photon_count" value="$photons"/>
     </integrator>"#;
 
+/// Classic SPPM: photons carry all light that bounced before the visible
+/// point; only direct light is sampled there.
+const SPPM_INDIRECT: &str = r#"<integrator type="sppm">
+        <integer name="max_depth" value="8"/>
+        <integer name="photon_count" value="$photons"/>
+        <string name="photons" value="indirect"/>
+    </integrator>"#;
+
 /// Consistency on the Cornell box (diffuse): against Mitsuba's reference
 /// (65 536 spp), the error of 8 × 8-pixel block means falls with the
 /// iterations at the rate SPPM promises (relMSE ∝ k^−(1−α)·… ≈ k^−2/3 at
 /// best), and the bias of the image mean is small at the final count.
 #[test]
 fn cornell_box_error_falls_with_iterations() {
+    cornell_box_error_falls(SPPM, "caustics", 0.03);
+}
+
+/// The same with `photons = indirect` (all indirect light from photons:
+/// a larger bias at few iterations, which must vanish as well).
+#[test]
+fn cornell_box_error_falls_with_iterations_indirect_photons() {
+    cornell_box_error_falls(SPPM_INDIRECT, "indirect", 0.03);
+}
+
+fn cornell_box_error_falls(integrator: &str, name: &str, tolerance: f64) {
     let reference = read_exr(&repo("tests/references/cornell-box.exr")).expect("reference");
-    let text = with_integrator("scenes/cornell-box.xml", SPPM);
+    let text = with_integrator("scenes/cornell-box.xml", integrator);
     let mut errors = vec![];
     for k in [4u32, 16, 64] {
         let scene = load(
@@ -122,7 +141,7 @@ fn cornell_box_error_falls_with_iterations() {
         let e = block_rel_mse(&img, &reference, 8);
         let (m, r) = (mean(&img), mean(&reference));
         eprintln!(
-            "cornell sppm k = {k:3}: block relMSE {e:.3e}, mean ratio {:.4} {:.4} {:.4}, {:.2} s",
+            "cornell sppm ({name}) k = {k:3}: block relMSE {e:.3e}, mean ratio {:.4} {:.4} {:.4}, {:.2} s",
             m[0] / r[0],
             m[1] / r[1],
             m[2] / r[2],
@@ -141,12 +160,12 @@ fn cornell_box_error_falls_with_iterations() {
         );
     }
     let rate = (errors[0].1 / errors[2].1).ln() / (errors[2].0 as f64 / errors[0].0 as f64).ln();
-    eprintln!("cornell sppm: relMSE ∝ k^-{rate:.2}");
+    eprintln!("cornell sppm ({name}): relMSE ∝ k^-{rate:.2}");
     let (_, _, ratio) = errors[2];
     for c in 0..3 {
         assert!(
-            (ratio[c] - 1.0).abs() < 0.03,
-            "channel {c}: mean ratio {:.4} at 64 iterations",
+            (ratio[c] - 1.0).abs() < tolerance,
+            "{name} channel {c}: mean ratio {:.4} at 64 iterations",
             ratio[c]
         );
     }
@@ -238,9 +257,11 @@ fn pool_floor_through_water_matches_the_closed_form() {
         "the path tracer found the SDS light: {m:?}"
     );
     // The view spans ±0.07 on the floor: irradiance within 0.4 % of the axis'.
+    let indirect = POOL_SPPM.replace("</integrator>", r#"<string name="photons" value="indirect"/></integrator>"#);
     for (mode, img) in [
         ("rgb", pool_render::<Rgb>(POOL_SPPM, 48)),
         ("spectral", pool_render::<Sampled>(POOL_SPPM, 48)),
+        ("rgb, photons = indirect", pool_render::<Rgb>(&indirect, 48)),
     ] {
         let m = mean(&img);
         eprintln!(
@@ -328,6 +349,18 @@ fn bad_parameters_are_located_errors() {
             light,
             29,
             "0 (automatic)",
+        ),
+        (
+            r#"<integrator type="sppm"><string name="photons" value="all"/></integrator>"#,
+            light,
+            29,
+            "caustics",
+        ),
+        (
+            r#"<integrator type="sppm"><float name="radius_footprints" value="0"/></integrator>"#,
+            light,
+            29,
+            "pixel footprints",
         ),
         (
             r#"<integrator type="sppm"><integer name="photonCount" value="10"/></integrator>"#,

@@ -20,7 +20,8 @@ find in any affordable time (scenes/pool-sun.xml). The scene's integrator block 
 
 Usage: python3 tools/sppm_efficiency.py --scene scenes/caustic-cornell-box.xml
            [--res 64] [--threads 2] [--ref-spp 8192] [--iterations 64]
-           [--photons 50000] [--runs 3] [--drop REGEX] [-D key=value ...]
+           [--photons 50000] [--photon-mode caustics|indirect] [--radius-footprints 1.5]
+           [--runs 3] [--drop REGEX] [-D key=value ...]
            [--ref sppm --ref-iterations 256 --ref-photons 2000000 --ref-radius 0.01]
 """
 import argparse
@@ -94,6 +95,10 @@ def main():
     ap.add_argument("--ref-spp", type=int, default=8192)
     ap.add_argument("--iterations", type=int, default=64)
     ap.add_argument("--photons", type=int, default=50000)
+    ap.add_argument("--photon-mode", choices=["caustics", "indirect"], default="caustics",
+                    help="sppm's `photons`: the light the photons carry")
+    ap.add_argument("--radius-footprints", type=float, default=1.5,
+                    help="sppm's automatic initial radius in pixel footprints")
     ap.add_argument("--max-depth", type=int, default=8)
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--drop", action="append", default=[])
@@ -108,14 +113,17 @@ def main():
     args = ap.parse_args()
     path_xml = f'<integrator type="path"><integer name="max_depth" value="{args.max_depth}"/></integrator>'
     sppm_xml = (f'<integrator type="sppm"><integer name="max_depth" value="{args.max_depth}"/>'
-                f'<integer name="photon_count" value="{args.photons}"/></integrator>')
+                f'<integer name="photon_count" value="{args.photons}"/>'
+                f'<string name="photons" value="{args.photon_mode}"/>'
+                f'<float name="radius_footprints" value="{args.radius_footprints}"/></integrator>')
     ref_xml = (f'<integrator type="sppm"><integer name="max_depth" value="{args.max_depth}"/>'
                f'<integer name="photon_count" value="{args.ref_photons}"/>'
                f'<float name="initial_radius" value="{args.ref_radius}"/></integrator>')
     path_scene, sppm_scene, ref_scene = variant(args, path_xml, "path"), None, None
     try:
         sppm_scene = variant(args, sppm_xml, "sppm")
-        print(f"{args.scene} at {args.res} px, {args.threads} threads, drop {args.drop}")
+        print(f"{args.scene} at {args.res} px, {args.threads} threads, drop {args.drop}; sppm {args.iterations} x {args.photons} photons, "
+              f"photons={args.photon_mode}, radius {args.radius_footprints} footprints; load {os.getloadavg()[0]:.1f}")
         if args.ref_pfm:
             ref = read_pfm(args.ref_pfm)[2]
             print(f"  reference: {args.ref_pfm}")

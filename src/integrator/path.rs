@@ -19,8 +19,8 @@
 //! <integrator type="path"><integer name="max_depth" value="8"/></integrator>
 //! ```
 
-use crate::bsdf::{Lobe, BsdfContext};
-use crate::geometry::Ray;
+use crate::bsdf::{Bsdf, Lobe, BsdfContext};
+use crate::geometry::{Ray, SurfaceInteraction};
 use crate::math::mis_power;
 use crate::sampler::Sampler;
 use crate::emitter::ShadingPoint;
@@ -57,16 +57,14 @@ impl PathTracer {
             let Some(si) = &hit else {
                 if visible {
                     if let Some(env) = scene.environment_radiance::<S>(ray.d, wl) {
-                        let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_environment(&ShadingPoint { p: prev_p, n: prev_n }, ray.d)) };
-                        result += throughput * env * w;
+                        result += throughput * env * escaped_weight(scene, &ShadingPoint { p: prev_p, n: prev_n }, prev_pdf, prev_delta, ray.d);
                     }
                 }
                 break;
             };
             if visible {
                 if let Some(le) = scene.emitted::<S>(si, wl) {
-                    let w = if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_emitter_hit(&ShadingPoint { p: prev_p, n: prev_n }, si)) };
-                    result += throughput * le * w;
+                    result += throughput * le * hit_weight(scene, &ShadingPoint { p: prev_p, n: prev_n }, prev_pdf, prev_delta, si);
                 }
             }
             if depth.saturating_add(1) >= self.max_depth {
@@ -83,14 +81,7 @@ impl PathTracer {
 
             // Next-event estimation.
             if bsdf.lobes().intersects(Lobe::SMOOTH) {
-                if let Some(es) = scene.sample_emitter::<S>(si, sampler.next_2d(), wl) {
-                    let wo = si.to_local(es.d);
-                    let (f, pdf): (S, f32) = bsdf.eval_pdf(&BsdfContext::RADIANCE, si, si.wi, wo, wl);
-                    if !f.is_zero() {
-                        let w = if es.delta { 1.0 } else { mis_power(es.pdf, pdf) };
-                        result += throughput * f * es.weight * w;
-                    }
-                }
+                result += next_event::<S>(scene, si, bsdf, &BsdfContext::RADIANCE, throughput, sampler, wl);
             }
 
             // Continue the path by sampling the BSDF.
@@ -119,4 +110,42 @@ impl PathTracer {
         }
         result
     }
+}
+
+/// The path tracer's next-event estimate at `si` for a path of throughput
+/// `beta` (one emitter sample; the caller checks that `bsdf` has a smooth
+/// lobe): beta · f · L / p, weighted against
+/// BSDF sampling under `ctx` by the power heuristic (in full for a delta
+/// emitter). Takes one 2-D sample. Shared with `sppm`'s camera paths.
+#[inline]
+pub fn next_event<S: Spectrum>(
+    scene: &Scene,
+    si: &SurfaceInteraction,
+    bsdf: &Bsdf,
+    ctx: &BsdfContext,
+    beta: S,
+    sampler: &mut Sampler,
+    wl: &S::Wavelengths,
+) -> S {
+    let Some(es) = scene.sample_emitter::<S>(si, sampler.next_2d(), wl) else { return S::zero() };
+    let wo = si.to_local(es.d);
+    let (f, pdf): (S, f32) = bsdf.eval_pdf(ctx, si, si.wi, wo, wl);
+    if f.is_zero() {
+        return S::zero();
+    }
+    let w = if es.delta { 1.0 } else { mis_power(es.pdf, pdf) };
+    beta * f * es.weight * w
+}
+
+/// MIS weight of emission met at `si` by a BSDF sample of density
+/// `prev_pdf` taken at `prev` (1 after a delta lobe or at the camera).
+#[inline]
+pub fn hit_weight(scene: &Scene, prev: &ShadingPoint, prev_pdf: f32, prev_delta: bool, si: &SurfaceInteraction) -> f32 {
+    if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_emitter_hit(prev, si)) }
+}
+
+/// As [`hit_weight`] for the environment met along the unit direction `d`.
+#[inline]
+pub fn escaped_weight(scene: &Scene, prev: &ShadingPoint, prev_pdf: f32, prev_delta: bool, d: glam::Vec3) -> f32 {
+    if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_environment(prev, d)) }
 }

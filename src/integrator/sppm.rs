@@ -11,7 +11,10 @@
 //! caustic) is gathered from photons; all other light is path traced from
 //! the visible point. Jensen's caustic photon map, made progressive: photons
 //! go only where a path tracer cannot, and the smooth indirect light keeps
-//! a path tracer's noise without a photon map's blur.
+//! a path tracer's noise without a photon map's blur. With
+//! `photons = indirect` the split is classic SPPM's instead: photons carry
+//! all light that bounced at least once before the visible point, and only
+//! the direct light there is sampled.
 //!
 //! Each iteration (one per sample of the sampler: `sample_count` iterations)
 //!
@@ -21,15 +24,17 @@
 //!    emission met on the way and the direct light there (one emitter
 //!    sample). On a BSDF with both delta and smooth lobes (smooth plastic)
 //!    the path stops there or follows the delta lobes with probability ½
-//!    each (weighted by 2). From the visible point it goes on as a path
-//!    tracer by the smooth lobes (emitter sampling at every non-delta vertex,
-//!    emission counted only after a delta bounce) and stops where the vertex
-//!    after the visible point scatters by a delta lobe: that light is the
-//!    photons';
+//!    each (weighted by 2). From the visible point it goes on as `path` does
+//!    (the same vertex shading: emitter sampling and BSDF sampling weighted
+//!    by MIS; only the smooth lobes at the visible point) and stops where
+//!    the vertex after the visible point scatters by a delta lobe: that
+//!    light is the photons' (`photons = indirect`: it stops at the vertex
+//!    after the visible point, having counted the emission met there);
 //! 2. traces `photon_count` light paths from the emitters (chosen as
 //!    [`crate::scene::Scene::sample_emission`] chooses them; importance transport,
 //!    Veach's shading-normal correction as `ptracer`); at every non-delta
-//!    surface reached straight from a delta bounce each photon adds
+//!    surface reached straight from a delta bounce (`photons = indirect`:
+//!    after any bounce) each photon adds
 //!    β_cam · f · Φ to the statistics of the visible points within their
 //!    pixel's radius R (a uniform hash grid of the visible points; no photon
 //!    is stored);
@@ -40,7 +45,7 @@
 //! D the sum of the camera passes' path-traced light. The radius shrinks so
 //! that bias and variance both vanish: the error against the true image
 //! falls as the iterations grow (the bias like R², the variance like
-//! 1/(k R²)). A pixel's initial radius is 1.5 × its footprint at its first
+//! 1/(k R²)). A pixel's initial radius is `radius_footprints` (1.5) × its footprint at its first
 //! visible point (the camera's pixel spread times the camera path's length),
 //! as small as the pixel grid can resolve: Mitsuba 0.6's scene-wide guess
 //! (5 × bounding radius / film size) blurred the caustics of large scenes
@@ -55,6 +60,8 @@
 //! | `rr_depth` | integer | 5 | depth at which Russian roulette starts (camera and light paths each) |
 //! | `granularity` | integer | 0 | photons per unit of parallel work; 0 = automatic. No effect on the image |
 //! | `max_passes` | integer | -1 | iterations; -1 = the sampler's `sample_count` (a command-line sample count wins over both) |
+//! | `photons` | string | `caustics` | the light photons carry: `caustics` (arriving at the visible point straight from a delta bounce; the rest is path traced), `indirect` (everything that bounced before the visible point: classic SPPM, only direct light sampled there), `none` (no photons: the image without caustics, for measuring the split; not a complete image) |
+//! | `radius_footprints` | float | 1.5 | the automatic initial radius (`initial_radius` 0) in pixel footprints at each pixel's first visible point |
 //!
 //! ```xml
 //! <integrator type="sppm">
@@ -82,9 +89,6 @@
 //!   iteration count only — identical for any thread count and pass split
 //!   (photon flux is summed in fixed point with dithered rounding, so the
 //!   order of the sums does not matter).
-//! - Path-traced light uses emitter sampling alone (no MIS with BSDF
-//!   sampling): glossy surfaces under large lights are noisier than with
-//!   `path`.
 //! - Memory: per pixel one visible point, its statistics and at most eight
 //!   grid entries ([`MEMORY_PER_PIXEL`] bytes in all); photons are not
 //!   stored, so memory does not grow with `photon_count`.
@@ -94,6 +98,8 @@ use crate::emitter::Emitter;
 use crate::math::Frame;
 use crate::film::{FilmState, Filter, Image, Sink};
 use crate::geometry::{Ray, SurfaceInteraction};
+use crate::emitter::ShadingPoint;
+use crate::integrator::path::{escaped_weight, hit_weight, next_event};
 use crate::integrator::ptracer::shading_correction;
 use crate::math::rng::mix64;
 use crate::render::{PassReport, RenderOptions, RenderStats};
@@ -120,6 +126,34 @@ pub struct Sppm {
     /// Iterations asked for by `max_passes` (0: the sampler's sample count);
     /// the loader sets the sample count from it.
     pub max_passes: u32,
+    /// Which light the photons carry (the camera paths trace the rest).
+    pub photons: Photons,
+    /// The automatic initial radius in pixel footprints at the visible point.
+    pub radius_footprints: f32,
+}
+
+/// The split of the light between photons and camera paths (`photons`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Photons {
+    /// Photons arriving straight from a delta bounce (Jensen's caustic map).
+    Caustics,
+    /// Photons after any bounce: all indirect light (classic SPPM).
+    Indirect,
+    /// No photons: the image without the caustics (a diagnostic).
+    None,
+}
+
+impl Photons {
+    pub const NAMES: [&'static str; 3] = ["caustics", "indirect", "none"];
+
+    pub fn from_name(name: &str) -> Option<Photons> {
+        match name {
+            "caustics" => Some(Photons::Caustics),
+            "indirect" => Some(Photons::Indirect),
+            "none" => Some(Photons::None),
+            _ => None,
+        }
+    }
 }
 
 /// A pixel's visible point in one iteration: where its camera path met its
@@ -152,9 +186,6 @@ pub const MEMORY_PER_PIXEL: u64 = (std::mem::size_of::<Option<VisiblePoint<Sampl
     + std::mem::size_of::<PixelStats>()
     + 3 * 8
     + 4) as u64;
-
-/// The automatic initial radius in pixel footprints at the visible point.
-const RADIUS_PIXELS: f64 = 1.5;
 
 /// Photon flux is summed per pixel in fixed point: units of 2^−16, each
 /// term (a photon's β_cam·f·Φ) clamped to ±2^24 (far beyond any pixel's
@@ -286,8 +317,17 @@ impl Sppm {
     }
 
     /// The camera path of pixel (`x`, `y`) of the full film in iteration
-    /// `iteration`: the emitted and direct light it found (RGB) and its
-    /// visible point, if it reached one.
+    /// `iteration`: the light it found (RGB) and its visible point, if it
+    /// reached one. A path tracer's path (`PathTracer::li`'s vertex
+    /// shading: emitter sampling and BSDF sampling weighted by MIS, the
+    /// same [`next_event`], [`hit_weight`]) with three differences: the
+    /// first non-delta vertex is the visible point (on a BSDF with both
+    /// delta and smooth lobes, with probability ½: then only its smooth
+    /// lobes are sampled there, else only its delta lobes, each weighted by
+    /// 2); with `photons = caustics` the path stops where the vertex after
+    /// the visible point scatters by a delta lobe (the photons carry that
+    /// light), and with `photons = indirect` it stops at the vertex after
+    /// the visible point (only direct light is sampled there).
     fn camera_path<S: Spectrum>(
         &self,
         scene: &Scene,
@@ -307,23 +347,34 @@ impl Sppm {
         let mut l = S::zero();
         let mut beta = S::splat(1.0);
         let mut eta = 1.0f32;
+        // Segments so far (a vertex found by the ray makes it depth + 1).
         let mut depth = 0u32;
         let mut distance = 0.0f32;
         let mut ctx = BsdfContext::RADIANCE;
+        let mut prev = ShadingPoint::at(ray.o);
+        let mut prev_pdf = 0.0f32;
+        let mut prev_delta = true;
+        let mut vp: Option<VisiblePoint<S>> = None;
+        // Vertices since the visible point (0: at it or before it).
+        let mut after = 0u32;
         loop {
             let Some(si) = scene.intersect_path(&ray, false, &mut sampler) else {
                 if let Some(env) = scene.environment_radiance::<S>(ray.d, &wl) {
-                    l += beta * env;
+                    l += beta * env * escaped_weight(scene, &prev, prev_pdf, prev_delta, ray.d);
                 }
                 break;
             };
             depth += 1;
-            distance += si.t * ray.d.length();
-            if let Some(le) = scene.emitted::<S>(&si, &wl) {
-                l += beta * le;
+            if vp.is_none() {
+                distance += si.t * ray.d.length();
+            } else {
+                after += 1;
             }
-            // Direct light and photons each add at least one segment.
-            if depth >= self.max_depth {
+            if let Some(le) = scene.emitted::<S>(&si, &wl) {
+                l += beta * le * hit_weight(scene, &prev, prev_pdf, prev_delta, &si);
+            }
+            // Emitter sampling and photons each add at least one segment.
+            if depth >= self.max_depth || (after >= 1 && self.photons == Photons::Indirect) {
                 break;
             }
             let bsdf = scene.bsdf(&si);
@@ -335,40 +386,33 @@ impl Sppm {
                 lobes.intersects(Lobe::SMOOTH),
                 lobes.intersects(Lobe::DELTA),
             );
-            // Both kinds of lobes: stop or go on with probability ½ each.
-            let (stop, scale) = match (smooth, delta) {
-                (true, true) => (sampler.next_1d() < 0.5, 2.0),
-                (s, _) => (s, 1.0),
-            };
-            if stop {
-                beta *= scale;
-                if let Some(es) = scene.sample_emitter::<S>(&si, sampler.next_2d(), &wl) {
-                    let f: S =
-                        bsdf.eval(&BsdfContext::RADIANCE, &si, si.wi, si.to_local(es.d), &wl);
-                    if !f.is_zero() {
-                        l += beta * f * es.weight;
-                    }
+            let mut sample_ctx = ctx;
+            if vp.is_none() {
+                if !smooth && !delta {
+                    break;
                 }
-                let indirect = self.indirect::<S>(scene, &mut sampler, si, beta, wl, depth, eta);
-                return (
-                    l.to_rgb(&wl) + indirect,
-                    Some(VisiblePoint {
-                        si,
+                // Both kinds of lobes: stop or go on with probability ½ each.
+                let (stop, scale) = match (smooth, delta) {
+                    (true, true) => (sampler.next_1d() < 0.5, 2.0),
+                    (s, _) => (s, 1.0),
+                };
+                beta *= scale;
+                if stop {
+                    sample_ctx = ctx.with_lobes(Lobe::SMOOTH);
+                    vp = Some(VisiblePoint {
+                        si: si.clone(),
                         beta,
                         wl,
                         depth,
                         distance,
-                    }),
-                );
+                    });
+                } else if smooth {
+                    sample_ctx = ctx.with_lobes(Lobe::DELTA);
+                }
             }
-            if !delta {
-                break;
+            if vp.is_some() && lobes.intersects(Lobe::SMOOTH) && sample_ctx.lobes.intersects(Lobe::SMOOTH) {
+                l += next_event::<S>(scene, &si, bsdf, &sample_ctx, beta, &mut sampler, &wl);
             }
-            let sample_ctx = if smooth {
-                ctx.with_lobes(Lobe::DELTA)
-            } else {
-                ctx
-            };
             let Some(bs) = bsdf.sample::<S>(
                 &sample_ctx,
                 &si,
@@ -379,9 +423,17 @@ impl Sppm {
             ) else {
                 break;
             };
+            let delta_bounce = bs.lobe.intersects(Lobe::DELTA);
+            if after == 1 && delta_bounce && self.photons != Photons::Indirect {
+                // A caustic onto the visible point: the photons' part.
+                break;
+            }
             ctx = ctx.following(bs.lobe);
-            beta *= bs.weight * scale;
+            beta *= bs.weight;
             eta *= bs.eta;
+            prev = ShadingPoint::from(&si);
+            prev_pdf = bs.pdf;
+            prev_delta = delta_bounce;
             let d = si.to_world(bs.wo);
             ray = Ray::new(si.spawn_origin(d), d);
             let t_max = beta.max_component();
@@ -396,103 +448,8 @@ impl Sppm {
                 break;
             }
         }
-        (l.to_rgb(&wl), None)
-    }
-
-    /// The light reaching the visible point `vp` (camera path throughput
-    /// `beta`, `depth` segments) by every path except those the photons
-    /// carry, path traced: a path from the visible point by its smooth
-    /// lobes, emitter sampling (alone, no MIS) at each non-delta vertex,
-    /// emission counted only where met after a delta bounce. A path whose
-    /// first vertex after the visible point scatters by a delta lobe (light
-    /// focused by glass or a mirror onto the visible point: a caustic) stops
-    /// there: the photons deposited after a delta bounce carry exactly those.
-    #[allow(clippy::too_many_arguments)]
-    fn indirect<S: Spectrum>(
-        &self,
-        scene: &Scene,
-        sampler: &mut Sampler,
-        vp: SurfaceInteraction,
-        beta: S,
-        wl: S::Wavelengths,
-        depth: u32,
-        eta: f32,
-    ) -> Rgb {
-        let (mut si, mut beta, mut wl, mut depth, mut eta) = (vp, beta, wl, depth, eta);
-        let mut l = S::zero();
-        let mut ctx = BsdfContext::RADIANCE;
-        // 0: at the visible point, 1: at the vertex after it, 2: beyond.
-        let mut vertex = 0u32;
-        loop {
-            // The next vertex and emitter sampling there: two more segments.
-            if depth.saturating_add(2) > self.max_depth {
-                break;
-            }
-            let bsdf = scene.bsdf(&si);
-            let sample_ctx = if vertex == 0 { ctx.with_lobes(Lobe::SMOOTH) } else { ctx };
-            let Some(bs) = bsdf.sample::<S>(
-                &sample_ctx,
-                &si,
-                si.wi,
-                sampler.next_1d(),
-                sampler.next_2d(),
-                &wl,
-            ) else {
-                break;
-            };
-            let delta = bs.lobe.intersects(Lobe::DELTA);
-            if delta && vertex <= 1 {
-                // A caustic onto the visible point: the photons' part.
-                break;
-            }
-            ctx = ctx.following(bs.lobe);
-            beta *= bs.weight;
-            eta *= bs.eta;
-            let d = si.to_world(bs.wo);
-            let ray = Ray::new(si.spawn_origin(d), d);
-            let t_max = beta.max_component();
-            if !(t_max > 0.0) {
-                break;
-            }
-            if depth >= self.rr_depth {
-                let q = (t_max * eta * eta).min(0.95);
-                if !(sampler.next_1d() < q) {
-                    break;
-                }
-                beta *= 1.0 / q;
-            }
-            let Some(next) = scene.intersect_path(&ray, false, sampler) else {
-                if delta {
-                    if let Some(env) = scene.environment_radiance::<S>(ray.d, &wl) {
-                        l += beta * env;
-                    }
-                }
-                break;
-            };
-            depth += 1;
-            vertex += 1;
-            if delta {
-                if let Some(le) = scene.emitted::<S>(&next, &wl) {
-                    l += beta * le;
-                }
-            }
-            let nbsdf = scene.bsdf(&next);
-            if nbsdf.disperses() {
-                S::terminate_secondary(&mut wl);
-            }
-            if depth < self.max_depth && nbsdf.lobes().intersects(Lobe::SMOOTH) {
-                if let Some(es) = scene.sample_emitter::<S>(&next, sampler.next_2d(), &wl) {
-                    let f: S =
-                        nbsdf.eval(&BsdfContext::RADIANCE, &next, next.wi, next.to_local(es.d), &wl);
-                    if !f.is_zero() {
-                        l += beta * f * es.weight;
-                    }
-                }
-            }
-            si = next;
-        }
         let rgb = l.to_rgb(&wl);
-        if rgb.is_finite() { rgb } else { Rgb::zero() }
+        (if rgb.is_finite() { rgb } else { Rgb::zero() }, vp)
     }
 
     /// Traces photon `index` of iteration `iteration` and adds it to the
@@ -540,7 +497,12 @@ impl Sppm {
                 S::terminate_secondary(&mut wl);
                 dispersed = true;
             }
-            if after_delta && bsdf.lobes().intersects(Lobe::SMOOTH) {
+            let deposit = match self.photons {
+                Photons::Caustics => after_delta,
+                Photons::Indirect => segments >= 2,
+                Photons::None => false,
+            };
+            if deposit && bsdf.lobes().intersects(Lobe::SMOOTH) {
                 let seed =
                     mix64(((iteration as u64) << 32 | index as u64) ^ ((segments as u64) << 58));
                 self.deposit(
@@ -700,7 +662,7 @@ pub fn render<S: Spectrum>(
     };
     let bar = crate::render::progress_bar(options, pixels as u64 * iterations as u64);
     // The initial radius: the given one for every pixel, or each pixel's
-    // footprint at its first visible point times RADIUS_PIXELS (0 = not
+    // footprint at its first visible point times `radius_footprints` (0 = not
     // yet set), or Mitsuba 0.6's guess where the camera gives no footprint.
     let (r0, footprint) = if sppm.initial_radius > 0.0 {
         (sppm.initial_radius as f64, None)
@@ -765,7 +727,7 @@ pub fn render<S: Spectrum>(
             if let Some((offset, spread)) = footprint {
                 for (st, vp) in stats.iter_mut().zip(&points) {
                     if let (0.0, Some(vp)) = (st.radius, vp) {
-                        let r = RADIUS_PIXELS * (offset + spread * vp.distance) as f64;
+                        let r = sppm.radius_footprints as f64 * (offset + spread * vp.distance) as f64;
                         st.radius = if r.is_finite() && r > 0.0 { r } else { r_fallback };
                     }
                 }
@@ -774,7 +736,8 @@ pub fn render<S: Spectrum>(
                 phi: (0..pixels).map(|_| Default::default()).collect(),
                 count: (0..pixels).map(|_| AtomicU32::new(0)).collect(),
             };
-            if let Some(grid) = Grid::build(&points, &stats) {
+            let grid = if sppm.photons == Photons::None { None } else { Grid::build(&points, &stats) };
+            if let Some(grid) = grid {
                 pool.install(|| {
                     (0..photon_count)
                         .into_par_iter()

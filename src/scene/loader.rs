@@ -20,6 +20,7 @@ use crate::geometry::sphere::Sphere;
 use crate::geometry::{Shape, ShapeGeometry};
 use crate::emitter::{LightSampling, LightSelector};
 use crate::integrator::{Aov, AovKind, Bdpt, Direct, Integrator, Moment, ParticleTracer, PathTracer, Sppm};
+use crate::integrator::sppm::Photons as SppmPhotons;
 use crate::math::Transform;
 use crate::sampler::SamplerSpec;
 use crate::sensor::perspective::{focal_length_fov, horizontal_fov, parse_focal_length};
@@ -1220,7 +1221,11 @@ impl Loader {
                 let alpha = props.float_checked("alpha", 2.0 / 3.0, |a| a > 0.0 && a < 1.0, "between 0 and 1 (exclusive)")?;
                 let granularity = props.int_checked("granularity", 0, |v| (0..=1 << 24).contains(&v), "0 (automatic) or a positive integer up to 2^24")?;
                 let passes = props.int_checked("max_passes", -1, |v| v == -1 || (1..=MAX_SPP as i64).contains(&v), "-1 (the sampler's sample count) or between 1 and 2^24")?;
+                let photons = props.choice("photons", "caustics", &SppmPhotons::NAMES)?;
+                let radius_footprints = props.float_checked("radius_footprints", 1.5, |r| r > 0.0 && r <= 1e4, "a positive number of pixel footprints up to 10^4")?;
                 Integrator::Sppm(Sppm {
+                    photons: SppmPhotons::from_name(photons).unwrap_or(SppmPhotons::Caustics),
+                    radius_footprints,
                     photon_count: photon_count.max(0) as u32,
                     initial_radius,
                     alpha,
