@@ -66,7 +66,6 @@ pub struct Rectangle {
 #[derive(Clone, Copy, Debug)]
 pub struct Spherical {
     o: Vec3,
-    ez: Vec3,
     x0: f32,
     x1: f32,
     y0: f32,
@@ -116,10 +115,8 @@ impl Rectangle {
         }
         let d = self.s - o;
         let (x0, y0, mut z0) = (d.dot(self.ex), d.dot(self.ey), d.dot(self.ez));
-        let mut ez = self.ez;
         if z0 > 0.0 {
             z0 = -z0;
-            ez = -ez;
         }
         if !(z0 < -1e-6 * (self.w + self.h)) {
             return None;
@@ -138,7 +135,7 @@ impl Rectangle {
         if !(solid_angle >= MIN_SOLID_ANGLE && solid_angle.is_finite()) {
             return None;
         }
-        Some(Spherical { o, ez, x0, x1, y0, y1, z0, b0: n0, b1: n2, k, solid_angle })
+        Some(Spherical { o, x0, x1, y0, y1, z0, b0: n0, b1: n2, k, solid_angle })
     }
 
     /// A point of the rectangle uniform in solid angle seen from `sp.o`.
@@ -165,7 +162,6 @@ impl Rectangle {
         if !(dist > 0.0 && dist.is_finite()) {
             return None;
         }
-        let _ = sp.ez;
         Some(DirectionSample { p, n: self.n, sh_n: self.n, d: v / dist, dist, pdf: 1.0 / sp.solid_angle })
     }
 

@@ -267,6 +267,11 @@ fn transmittance(scene: &Scene, a: Vec3, na: Vec3, b: Vec3, nb: Vec3) -> f32 {
 }
 
 impl<S: Spectrum> Vertex<S> {
+    /// The camera subpath's first vertex: the pinhole at `origin`.
+    fn pinhole(origin: Vec3) -> Vertex<S> {
+        Vertex { kind: Kind::Camera, p: origin, ng: Vec3::ZERO, ns: Vec3::ZERO, si: None, ctx: BsdfContext::RADIANCE, beta: S::splat(1.0), delta: false, pdf_fwd: 1.0, pdf_rev: 0.0 }
+    }
+
     fn surface(si: SurfaceInteraction, ctx: BsdfContext, beta: S) -> Self {
         Vertex { kind: Kind::Surface, p: si.p, ng: si.n, ns: si.frame.n, si: Some(si), ctx, beta, delta: false, pdf_fwd: 0.0, pdf_rev: 0.0 }
     }
@@ -356,18 +361,7 @@ impl Bdpt {
         light.clear();
 
         // Camera subpath: the pinhole, then up to max_depth surface vertices.
-        cam.push(Vertex {
-            kind: Kind::Camera,
-            p: camera.origin(),
-            ng: Vec3::ZERO,
-            ns: Vec3::ZERO,
-            si: None,
-            ctx: BsdfContext::RADIANCE,
-            beta: S::splat(1.0),
-            delta: false,
-            pdf_fwd: 1.0,
-            pdf_rev: 0.0,
-        });
+        cam.push(Vertex::pinhole(camera.origin()));
         let max_camera = (self.max_depth as usize).saturating_add(1);
         let escape = self.walk(scene, camera, ray, S::splat(1.0), camera_pdf(camera, ray.d), sampler, wl, TransportMode::Radiance, max_camera, cam);
         let alpha = if cam.len() > 1 || (escape.is_some() && scene.environment.is_some() && !self.hide_emitters) { 1.0 } else { 0.0 };
@@ -829,18 +823,7 @@ mod tests {
                 let mut sampler = Sampler::start(&scene.sampler, x, y, index);
                 let pos = (Vec2::new(x as f32, y as f32) + sampler.next_2d()) / 16.0;
                 let ray = scene.camera.sample_ray(pos, &mut sampler);
-                let mut path = vec![Vertex {
-                    kind: Kind::Camera,
-                    p: camera.origin(),
-                    ng: Vec3::ZERO,
-                    ns: Vec3::ZERO,
-                    si: None,
-                    ctx: BsdfContext::RADIANCE,
-                    beta: Rgb::splat(1.0),
-                    delta: false,
-                    pdf_fwd: 1.0,
-                    pdf_rev: 0.0,
-                }];
+                let mut path = vec![Vertex::pinhole(camera.origin())];
                 bdpt.walk(&scene, camera, ray, Rgb::splat(1.0), camera_pdf(camera, ray.d), &mut sampler, &mut (), TransportMode::Radiance, 8, &mut path);
                 // The densities the walk keeps are its vertices' own (see `walk`).
                 let close = |a: f32, b: f32| (a - b).abs() <= 1e-4 * a.abs().max(b.abs()) + 1e-12;
@@ -940,18 +923,7 @@ mod tests {
                 let mut sampler = Sampler::start(&scene.sampler, x, y, index);
                 let pos = (Vec2::new(x as f32, y as f32) + sampler.next_2d()) / 16.0;
                 let ray = scene.camera.sample_ray(pos, &mut sampler);
-                let pinhole = Vertex {
-                    kind: Kind::Camera,
-                    p: camera.origin(),
-                    ng: Vec3::ZERO,
-                    ns: Vec3::ZERO,
-                    si: None,
-                    ctx: BsdfContext::RADIANCE,
-                    beta: Rgb::splat(1.0),
-                    delta: false,
-                    pdf_fwd: 1.0,
-                    pdf_rev: 0.0,
-                };
+                let pinhole = Vertex::pinhole(camera.origin());
                 let mut walk = vec![pinhole];
                 let escape = bdpt.walk(&scene, camera, ray, Rgb::splat(1.0), camera_pdf(camera, ray.d), &mut sampler, &mut (), TransportMode::Radiance, 7, &mut walk);
                 let at_infinity = |e: usize, last: &Vertex<Rgb>, d: Vec3, pdf_fwd: f32| Vertex {
