@@ -445,7 +445,7 @@ pub(crate) fn state_header<S: Spectrum>(scene: &Scene) -> StateHeader {
         sample_count: scene.sampler.sample_count,
         fingerprint: scene_fingerprint::<S>(scene),
         pixel_format: format_name,
-        layout: Layout { camera: !particle, splats: particle || matches!(scene.integrator, Integrator::Bdpt(_)), stokes: S::POLARIZED && !particle, extra },
+        layout: Layout { camera: !particle, splats: particle || matches!(scene.integrator, Integrator::Bdpt(_) | Integrator::Vcm(_)), stokes: S::POLARIZED && !particle, extra },
         ranges: vec![],
         complete: true,
         samples_taken: 0,
@@ -482,6 +482,8 @@ fn render_into<S: Spectrum>(
             anyhow::bail!("the bdpt integrator renders in the rgb and spectral modes only, not in a polarized mode; use path for polarization");
         }
         render_bdpt::<S>(scene, bdpt, options, &pool, &samples, rect, &mut state, bar)?
+    } else if let Integrator::Vcm(vcm) = &scene.integrator {
+        crate::integrator::vcm::render_range::<S>(scene, vcm, options, &pool, &samples, rect, &mut state, bar)?
     } else {
         render_camera::<S>(scene, options, &pool, &samples, rect, &mut state, bar)
     };
@@ -596,7 +598,7 @@ fn render_camera<S: Spectrum>(
 /// thread count and pass split. `init` makes a worker's own scratch memory.
 /// Returns the samples taken and the invalid ones.
 #[allow(clippy::too_many_arguments)]
-fn render_splatting<T>(
+pub(crate) fn render_splatting<T>(
     scene: &Scene,
     options: &RenderOptions,
     pool: &rayon::ThreadPool,

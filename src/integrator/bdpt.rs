@@ -167,7 +167,7 @@ struct Ctx<'a, S: Spectrum> {
     wl: &'a S::Wavelengths,
 }
 
-fn other(mode: TransportMode) -> TransportMode {
+pub(crate) fn other(mode: TransportMode) -> TransportMode {
     match mode {
         TransportMode::Radiance => TransportMode::Importance,
         TransportMode::Importance => TransportMode::Radiance,
@@ -177,7 +177,7 @@ fn other(mode: TransportMode) -> TransportMode {
 /// Solid-angle density with which the pinhole emits a camera ray along the
 /// unit direction `d` (the film position uniform over the image): 1/(A cos³θ),
 /// A the film's area at unit depth; 0 outside the image.
-fn camera_pdf(camera: &Perspective, d: Vec3) -> f32 {
+pub(crate) fn camera_pdf(camera: &Perspective, d: Vec3) -> f32 {
     let l = camera.to_world.inverse_vector(d);
     let len = l.length();
     if !(l.z > 0.0 && len > 0.0) {
@@ -195,7 +195,7 @@ fn camera_pdf(camera: &Perspective, d: Vec3) -> f32 {
 
 /// Solid-angle density with which emitter `e` emits a light path along `d`
 /// from a point with emission normal `ns` ([`Emitter::sample_ray`]).
-fn emission_pdf(scene: &Scene, e: usize, ns: Vec3, d: Vec3) -> f32 {
+pub(crate) fn emission_pdf(scene: &Scene, e: usize, ns: Vec3, d: Vec3) -> f32 {
     match &scene.emitters[e] {
         Emitter::Area(_) => ns.dot(d).max(0.0) / PI,
         Emitter::Point(_) => 1.0 / (4.0 * PI),
@@ -254,7 +254,7 @@ fn to_area<S>(pdf: f32, from: Vec3, to: &Vertex<S>) -> f32 {
 
 /// The fraction of light passing between points `a` and `b` (geometric
 /// normals `na`, `nb`; zero for a point).
-fn transmittance(scene: &Scene, a: Vec3, na: Vec3, b: Vec3, nb: Vec3) -> f32 {
+pub(crate) fn transmittance(scene: &Scene, a: Vec3, na: Vec3, b: Vec3, nb: Vec3) -> f32 {
     let d = b - a;
     let o = if na != Vec3::ZERO { offset_origin(a, na, d) } else { a };
     let target = if nb != Vec3::ZERO { offset_origin(b, nb, -d) } else { b };

@@ -9,6 +9,7 @@ pub mod direct;
 pub mod path;
 pub mod ptracer;
 pub mod sppm;
+pub mod vcm;
 
 pub use aov::{Aov, AovKind, Moment};
 pub use bdpt::{Bdpt, BdptScratch};
@@ -16,6 +17,7 @@ pub use direct::Direct;
 pub use path::PathTracer;
 pub use ptracer::ParticleTracer;
 pub use sppm::Sppm;
+pub use vcm::{Vcm, VcmMode};
 
 use crate::geometry::Ray;
 use crate::sampler::Sampler;
@@ -40,6 +42,9 @@ pub enum Integrator {
     /// Stochastic progressive photon mapping; rendered by its own driver
     /// ([`sppm::render`]), never through [`Integrator::li`].
     Sppm(Sppm),
+    /// Vertex connection and merging; rendered by its own driver
+    /// ([`vcm::render_range`]), never through [`Integrator::li`].
+    Vcm(Vcm),
 }
 
 impl Integrator {
@@ -50,7 +55,7 @@ impl Integrator {
         match self {
             Integrator::Direct(d) => d.li(scene, ray, sampler, wl),
             Integrator::Path(p) => p.li(scene, ray, sampler, wl),
-            Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) => S::zero(),
+            Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => S::zero(),
             Integrator::Aov(a) => a.integrators.first().map_or(S::zero(), |(_, i)| i.li(scene, ray, sampler, wl)),
             Integrator::Moment(m) => m.integrators.first().map_or(S::zero(), |(_, i)| i.li(scene, ray, sampler, wl)),
         }
@@ -68,7 +73,7 @@ impl Integrator {
 
     pub fn channel_count(&self) -> usize {
         match self {
-            Integrator::Direct(_) | Integrator::Path(_) | Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) => 0,
+            Integrator::Direct(_) | Integrator::Path(_) | Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => 0,
             _ => self.channel_names().len(),
         }
     }
@@ -92,7 +97,7 @@ impl Integrator {
                 let alpha = if scene.environment.is_some() && !p.hide_emitters { 1.0 } else { hits(p.hide_emitters) };
                 (p.li(scene, ray, sampler, wl), alpha)
             }
-            Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) => (S::zero(), 0.0),
+            Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => (S::zero(), 0.0),
             Integrator::Aov(a) => a.sample(scene, ray, sampler, wl, channels),
             Integrator::Moment(m) => m.sample(scene, ray, sampler, wl, channels),
         }

@@ -19,7 +19,7 @@ use crate::geometry::serialized;
 use crate::geometry::sphere::Sphere;
 use crate::geometry::{Shape, ShapeGeometry};
 use crate::emitter::{LightSampling, LightSelector};
-use crate::integrator::{Aov, AovKind, Bdpt, Direct, Integrator, Moment, ParticleTracer, PathTracer, Sppm};
+use crate::integrator::{Aov, AovKind, Bdpt, Direct, Integrator, Moment, ParticleTracer, PathTracer, Sppm, Vcm, VcmMode};
 use crate::integrator::sppm::Photons as SppmPhotons;
 use crate::math::Transform;
 use crate::sampler::SamplerSpec;
@@ -45,7 +45,7 @@ pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
 pub const SAMPLERS: [&str; 7] = crate::sampler::NAMES;
-pub const INTEGRATORS: [&str; 8] = ["direct", "path", "ptracer", "bdpt", "sppm", "stokes", "aov", "moment"];
+pub const INTEGRATORS: [&str; 9] = ["direct", "path", "ptracer", "bdpt", "sppm", "stokes", "aov", "moment", "vcm"];
 
 /// The most samples per pixel, from the scene or from `--spp` (Mitsuba's
 /// sample counts are 32-bit; 2^24 keeps per-pixel sums exact in f32 weights).
@@ -397,6 +397,16 @@ impl Loader {
             if !matches!(camera, Camera::Perspective(_)) {
                 return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic or thin-lens camera)")
                     .with_choices(&["perspective"]));
+            }
+        }
+        if let (Integrator::Vcm(_), Some(loc)) = (&integrator, &integrator_loc) {
+            if !matches!(camera, Camera::Perspective(_)) {
+                return Err(SceneError::at(loc, "vcm needs a perspective sensor (light subpaths cannot be connected to an orthographic or thin-lens camera)")
+                    .with_choices(&["perspective"]));
+            }
+            if self.emitters.iter().any(|e| matches!(e, Emitter::Projector(_))) {
+                return Err(SceneError::at(loc, "vcm cannot use a \"projector\" emitter (no density for its emitted directions); use path or ptracer")
+                    .with_choices(&["area", "point", "spot", "constant", "envmap", "directional"]));
             }
         }
         if let (Integrator::Bdpt(_), Some(loc)) = (&integrator, &integrator_loc) {
@@ -1235,6 +1245,25 @@ impl Loader {
                     max_passes: passes.max(0) as u32,
                 })
             }
+            "vcm" => {
+                let max_depth = props.int_checked("max_depth", -1, |v| v == -1 || v >= 1, "-1 (unlimited) or a positive integer")?;
+                let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
+                let mode = props.choice("mode", "vcm", &VcmMode::NAMES)?;
+                let photon_count = props.int_checked("photon_count", -1, |v| v == -1 || (1..=1 << 24).contains(&v), "-1 (automatic: one per pixel) or between 1 and 16777216 (2^24)")?;
+                let initial_radius = props.float_checked("initial_radius", 0.0, |r| r >= 0.0 && r.is_finite(), "0 (automatic) or a positive length")?;
+                let radius_footprints = props.float_checked("radius_footprints", 1.5, |r| r > 0.0 && r <= 1e4, "a positive number of pixel footprints up to 10^4")?;
+                let alpha = props.float_checked("alpha", 0.75, |a| a > 0.0 && a < 1.0, "between 0 and 1 (exclusive)")?;
+                self.light_sampling(&props, &LightSampling::NAMES)?;
+                Integrator::Vcm(Vcm {
+                    max_depth: self.depth_limit(&props, "max_depth", max_depth),
+                    rr_depth: self.depth_limit(&props, "rr_depth", rr_depth),
+                    mode: VcmMode::from_name(mode).unwrap_or(VcmMode::Vcm),
+                    photon_count: photon_count.max(0) as u32,
+                    initial_radius,
+                    radius_footprints,
+                    alpha,
+                })
+            }
             _ => return Err(unknown_plugin(node, &INTEGRATORS)),
         };
         props.finish()?;
@@ -1266,7 +1295,7 @@ impl Loader {
         let mut unnamed = 0;
         for child in props.children_of(Kind::Integrator) {
             let n = self.resolve(child)?;
-            if matches!(n.plugin.as_str(), "ptracer" | "bdpt" | "stokes" | "sppm") {
+            if matches!(n.plugin.as_str(), "ptracer" | "bdpt" | "stokes" | "sppm" | "vcm") {
                 return Err(SceneError::at(&n.loc, format!("the {} integrator nests camera-path integrators; \"{}\" cannot be nested", node.plugin, n.plugin))
                     .with_choices(&["direct", "path", "aov", "moment"]));
             }
