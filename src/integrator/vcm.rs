@@ -56,7 +56,7 @@
 //! | `initial_radius` | float | 0 | merge radius of the first iteration in world units; 0 = `radius_footprints` pixel footprints at the median distance of the surfaces the camera sees |
 //! | `radius_footprints` | float | 1.5 | the automatic initial radius in pixel footprints |
 //! | `alpha` | float | 0.75 | radius reduction, in (0, 1): r_k² = r₀² (k + 1)^(α − 1) |
-//! | `light_sampling` | string | `uniform` | emitter choice for next-event estimation (`uniform`, `power`, `bvh`) |
+//! | `light_sampling` | string | `bvh` | emitter choice for next-event estimation (`uniform`, `power`, `bvh`: Snell's scene-wide setting); light subpaths start by the emission probabilities (power unless `uniform`) |
 //!
 //! ```xml
 //! <integrator type="vcm">
