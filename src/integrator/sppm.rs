@@ -30,8 +30,9 @@
 //!    the vertex after the visible point scatters by a delta lobe: that
 //!    light is the photons' (`photons = indirect`: it stops at the vertex
 //!    after the visible point, having counted the emission met there);
-//! 2. traces `photon_count` light paths from the emitters (chosen as
-//!    [`crate::scene::Scene::sample_emission`] chooses them; importance transport,
+//! 2. traces `photon_count` light paths from the emitters (started by
+//!    [`crate::scene::Scene::sample_emission`], as `ptracer` and `bdpt` start
+//!    theirs; importance transport,
 //!    Veach's shading-normal correction as `ptracer`); at every non-delta
 //!    surface reached straight from a delta bounce (`photons = indirect`:
 //!    after any bounce) each photon adds
@@ -75,10 +76,11 @@
 //! - Modes `rgb` and `spectral` (all camera and light paths of one
 //!   iteration share its wavelengths, as pbrt-v4 does, so a photon and a
 //!   visible point see the same ones); the polarized modes are refused.
-//! - Photons start on every kind of emitter: finite ones sample their own
-//!   rays; emitters at infinity (`constant`, `envmap`, `directional`) send
-//!   photons from a disk of the scene's bounding sphere (most of which land
-//!   where no camera looks in a large scene: such scenes need more photons).
+//! - Photons start on every kind of emitter ([`crate::emitter::Emitter::sample_ray`]):
+//!   finite ones sample their own rays; emitters at infinity (`constant`,
+//!   `envmap`, `directional`) send photons from a disk of the scene's
+//!   bounding sphere (most of which land where no camera looks in a large
+//!   scene: such scenes need more photons).
 //! - The pixel filter is a box over the pixel (one visible point per pixel
 //!   and iteration); the film's `rfilter` is not used.
 //! - The per-pixel state (R, N, τ) is not a sum of samples: a render cannot
@@ -94,8 +96,6 @@
 //!   stored, so memory does not grow with `photon_count`.
 
 use crate::bsdf::{BsdfContext, Lobe};
-use crate::emitter::Emitter;
-use crate::math::Frame;
 use crate::film::{FilmState, Filter, Image, Sink};
 use crate::geometry::{Ray, SurfaceInteraction};
 use crate::emitter::ShadingPoint;
@@ -462,7 +462,6 @@ impl Sppm {
         index: u32,
         iteration: u32,
         wl: S::Wavelengths,
-        sphere: (Vec3, f32),
         grid: &Grid,
         points: &[Option<VisiblePoint<S>>],
         stats: &[PixelStats],
@@ -471,9 +470,12 @@ impl Sppm {
         let mut sampler = Sampler::start(spec, index, iteration, 0);
         let mut wl = wl;
         let mut dispersed = false;
-        let Some((mut ray, mut beta)) = emit::<S>(scene, sphere, &mut sampler, &wl) else {
+        // One light-path start shared with `ptracer` and `bdpt`.
+        let (u_pick, u_pos, u_dir) = (sampler.next_1d(), sampler.next_2d(), sampler.next_2d());
+        let Some(em) = scene.sample_emission::<S>(u_pick, u_pos, u_dir, &wl) else {
             return;
         };
+        let (mut ray, mut beta) = (em.ray, em.weight);
         let beta_start = beta.max_component();
         if !(beta_start > 0.0) {
             return;
@@ -607,31 +609,6 @@ fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
     (0.5 * (lo + hi), 0.5 * (hi - lo).length())
 }
 
-/// Starts a photon: an emitter chosen as light paths choose them
-/// ([`crate::emitter::LightSelector::select_emission`]) and a ray leaving
-/// it, with its throughput (emitted radiance × cosine over the densities).
-/// Finite emitters sample their own rays ([`Emitter::sample_ray`]); an
-/// emitter at infinity (`constant`, `envmap`, `directional`) sends its
-/// photon along a direction it samples (by its own density), from a point
-/// uniform on the disk of the scene's bounding sphere facing that direction
-/// (area π r²), as pbrt-v4 does.
-fn emit<S: Spectrum>(scene: &Scene, sphere: (Vec3, f32), sampler: &mut Sampler, wl: &S::Wavelengths) -> Option<(Ray, S)> {
-    let (u_pick, u_pos, u_dir) = (sampler.next_1d(), sampler.next_2d(), sampler.next_2d());
-    let (index, pmf, _) = scene.lights.select_emission(u_pick)?;
-    let emitter = &scene.emitters[index];
-    if matches!(emitter, Emitter::Constant(_) | Emitter::EnvMap(_) | Emitter::Directional(_)) {
-        let (center, r) = (sphere.0, sphere.1 * 1.01 + 1e-4);
-        let es = emitter.sample_direction::<S>(scene, center, u_dir, wl)?;
-        let w = -es.d;
-        let frame = Frame::from_normal(w);
-        let (rho, phi) = (u_pos.x.sqrt(), std::f32::consts::TAU * u_pos.y);
-        let o = center + r * (frame.to_world(Vec3::new(rho * phi.cos(), rho * phi.sin(), 0.0)) - w);
-        return Some((Ray::new(o, w), es.weight * (std::f32::consts::PI * r * r / pmf)));
-    }
-    let em = emitter.sample_ray::<S>(scene, u_pos, u_dir, wl)?;
-    Some((em.ray, em.weight / pmf))
-}
-
 /// One iteration's photon sums per pixel.
 struct Sums {
     phi: Vec<[AtomicI64; 3]>,
@@ -670,7 +647,6 @@ pub fn render<S: Spectrum>(
         (0.0, Some(Sppm::pixel_footprint(scene)))
     };
     let r_fallback = sppm.radius(scene) as f64;
-    let sphere = bounding_sphere(scene);
     let mut stats = vec![
         PixelStats {
             radius: r0,
@@ -749,7 +725,6 @@ pub fn render<S: Spectrum>(
                                 p,
                                 iteration,
                                 wl,
-                                sphere,
                                 &grid,
                                 &points,
                                 &stats,
