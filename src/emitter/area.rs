@@ -128,8 +128,8 @@ impl AreaLight {
     /// picks the point `hit` (geometric normal `n`) of the light.
     #[inline]
     pub fn pdf_direct(&self, scene: &Scene, p: Vec3, hit: Vec3, n: Vec3) -> f32 {
-        match self.rect.as_ref().and_then(|r| r.spherical(p)) {
-            Some(sp) => 1.0 / sp.solid_angle,
+        match self.rect.as_ref().and_then(|r| r.solid_angle(p)) {
+            Some(solid_angle) => 1.0 / solid_angle,
             None => scene.shapes[self.shape as usize].pdf_direction(p, hit, n),
         }
     }
