@@ -104,12 +104,15 @@ struct Node {
 
 const LEAF: u32 = 1 << 31;
 
-/// A leaf coded in the child word itself (`LEAF | DIRECT | first << 3 |
-/// (n − 1)`): triangles `first .. first + n` of the mesh `Accel::direct`,
-/// read straight from its index buffer. Made after the meshes were stored
-/// in leaf order (`Accel::direct_leaves`), it saves the two dependent loads
-/// of `leaves` and `tris` at every leaf visit. (`first` above the count
-/// keeps the order of equally near leaves on the traversal stack.)
+/// A leaf of triangles alone coded in the child word itself (`LEAF |
+/// DIRECT | first << 3 | (n − 1)`), which saves the dependent load of
+/// `leaves` (and `tris`) at every leaf visit. In a BVH that keeps lanes
+/// (`Accel::code_packed_leaves`): lanes and `tris` `first .. first + n`
+/// (`tris` only read for a hit). Else (`Accel::direct_leaves`, after the
+/// meshes were stored in leaf order): triangles `first .. first + n` of the
+/// mesh `Accel::direct`, read straight from its index buffer. (`first`
+/// above the count keeps the order of equally near leaves on the
+/// traversal stack.)
 const DIRECT: u32 = 1 << 30;
 /// The largest `first` of a `DIRECT` leaf.
 const DIRECT_FIRST: u32 = (1 << 27) - 1;
@@ -580,6 +583,7 @@ impl Accel {
         accel.tris.shrink_to_fit();
         if n_tris > 0 && keeps_packets(n_tris) {
             accel.store_lanes();
+            accel.code_packed_leaves();
         }
         accel
     }
@@ -626,11 +630,17 @@ impl Accel {
     /// hold other triangles or zeros: callers mask them out.
     #[inline(always)]
     fn packet<V: Lanes>(&self, first: usize, refs: &[TriRef]) -> TriPacket<V> {
-        let TriLanes { stride, f } = &self.lanes;
-        if f.is_empty() {
+        if self.lanes.f.is_empty() {
             return self.gather(refs);
         }
-        debug_assert!(first + PACKET <= *stride && f.len() == 9 * stride);
+        self.lanes_at(first)
+    }
+
+    /// The stored lanes of `tris[first..]` (`first` < `tris.len()`).
+    #[inline(always)]
+    fn lanes_at<V: Lanes>(&self, first: usize) -> TriPacket<V> {
+        let TriLanes { stride, f } = &self.lanes;
+        assert!(first + PACKET <= *stride && f.len() == 9 * stride);
         let l = |row: usize| {
             // SAFETY: `first` < tris.len() and each row holds `stride` =
             // tris.len() + PACKET floats, so the 8 read are inside `f`.
@@ -643,6 +653,22 @@ impl Accel {
     /// gathers triangles from the meshes, as BVHs above
     /// `PACKED_MAX_TRIANGLES` do (for tests and measurements).
     pub fn gather_triangles(&mut self) {
+        if self.keeps_packets() {
+            // `DIRECT` words back to leaf indices: the leaf with triangles
+            // that starts at `first` (leaves are in `tris` order; leaves of
+            // other primitives alone start where the next one does).
+            let leaves = &self.leaves;
+            for c in self.nodes.iter_mut().flat_map(|n| n.children.iter_mut()) {
+                if *c & (LEAF | DIRECT) == LEAF | DIRECT {
+                    let first = (*c & !(LEAF | DIRECT)) >> 3;
+                    let mut i = leaves.partition_point(|l| l.tri_start < first);
+                    while leaves[i].tri_end == leaves[i].tri_start {
+                        i += 1;
+                    }
+                    *c = LEAF | i as u32;
+                }
+            }
+        }
         self.lanes = TriLanes::default();
         self.groups.iter_mut().for_each(Accel::gather_triangles);
     }
@@ -723,6 +749,21 @@ impl Accel {
         reorder(self, shapes, &uses, force);
     }
 
+    /// Codes every leaf of triangles alone as a `DIRECT` child word, for a
+    /// BVH that keeps its triangles as lanes.
+    fn code_packed_leaves(&mut self) {
+        for c in self.nodes.iter_mut().flat_map(|n| n.children.iter_mut()) {
+            if *c & (LEAF | DIRECT) != LEAF {
+                continue;
+            }
+            let leaf = self.leaves[(*c & !LEAF) as usize];
+            let n = leaf.tri_end - leaf.tri_start;
+            if leaf.other_start == leaf.other_end && n > 0 && n as usize <= PACKET && leaf.tri_start <= DIRECT_FIRST {
+                *c = LEAF | DIRECT | leaf.tri_start << 3 | (n - 1);
+            }
+        }
+    }
+
     /// Turns every leaf holding only a run of consecutive triangles of mesh
     /// `mi` (and not stored as lanes) into a `DIRECT` child word; frees
     /// `leaves` and `tris` when no leaf is left that needs them.
@@ -734,7 +775,7 @@ impl Accel {
         let mut left = 0usize;
         for node in &mut self.nodes {
             for c in &mut node.children {
-                if *c & LEAF == 0 {
+                if *c & (LEAF | DIRECT) != LEAF {
                     continue;
                 }
                 let leaf = self.leaves[(*c & !LEAF) as usize];
@@ -930,14 +971,25 @@ impl Accel {
                     continue;
                 }
             } else if cur & DIRECT != 0 {
-                let m = &self.meshes[self.direct as usize];
                 let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
-                let p = gather_run::<V>(&m.positions, &m.triangles[first..first + n]);
-                if let Some((lane, t, u, v)) = r.closest_in(&p, n, tmax) {
-                    tmax = t;
-                    found = Some((PrimRef { shape: m.shape, prim: (first + lane) as u32 }, u, v));
-                    if INSTANCES {
-                        instance = NO_INSTANCE;
+                if self.keeps_packets() {
+                    if let Some((lane, t, u, v)) = r.closest_in(&self.lanes_at::<V>(first), n, tmax) {
+                        tmax = t;
+                        let tri = self.tris[first + lane];
+                        found = Some((PrimRef { shape: self.meshes[tri.mesh as usize].shape, prim: tri.prim }, u, v));
+                        if INSTANCES {
+                            instance = NO_INSTANCE;
+                        }
+                    }
+                } else {
+                    let m = &self.meshes[self.direct as usize];
+                    let p = gather_run::<V>(&m.positions, &m.triangles[first..first + n]);
+                    if let Some((lane, t, u, v)) = r.closest_in(&p, n, tmax) {
+                        tmax = t;
+                        found = Some((PrimRef { shape: m.shape, prim: (first + lane) as u32 }, u, v));
+                        if INSTANCES {
+                            instance = NO_INSTANCE;
+                        }
                     }
                 }
             } else {
@@ -1031,9 +1083,13 @@ impl Accel {
                     continue;
                 }
             } else if cur & DIRECT != 0 {
-                let m = &self.meshes[self.direct as usize];
                 let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
-                let p = gather_run::<V>(&m.positions, &m.triangles[first..first + n]);
+                let p = if self.keeps_packets() {
+                    self.lanes_at::<V>(first)
+                } else {
+                    let m = &self.meshes[self.direct as usize];
+                    gather_run::<V>(&m.positions, &m.triangles[first..first + n])
+                };
                 if r.triangles(&p, tmax).1 & lanes_of(n) != 0 {
                     return true;
                 }
