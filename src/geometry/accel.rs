@@ -104,6 +104,19 @@ struct Node {
 
 const LEAF: u32 = 1 << 31;
 
+/// A leaf of triangles alone coded in the child word itself (`LEAF |
+/// DIRECT | first << 3 | (n − 1)`), which saves the dependent load of
+/// `leaves` (and `tris`) at every leaf visit. In a BVH that keeps lanes
+/// (`Accel::code_packed_leaves`): lanes and `tris` `first .. first + n`
+/// (`tris` only read for a hit). Else (`Accel::direct_leaves`, after the
+/// meshes were stored in leaf order): triangles `first .. first + n` of the
+/// mesh `Accel::direct`, read straight from its index buffer. (`first`
+/// above the count keeps the order of equally near leaves on the
+/// traversal stack.)
+const DIRECT: u32 = 1 << 30;
+/// The largest `first` of a `DIRECT` leaf.
+const DIRECT_FIRST: u32 = (1 << 27) - 1;
+
 
 /// A leaf: triangles `tris[tri_start..tri_end]` (and the same lanes of
 /// `Accel::lanes` when the BVH keeps them), then `others[other_start..other_end]`.
@@ -235,6 +248,9 @@ pub struct Accel {
     /// One BVH per shape group, and the instances placing them.
     groups: Vec<Accel>,
     instances: Vec<Instance>,
+    /// The mesh (index into `meshes`) of the `DIRECT` leaves; `u32::MAX`
+    /// when there are none.
+    direct: u32,
     /// Bounds of everything (min, max); inverted when empty.
     extent: (Vec3, Vec3),
     /// The instruction set the traversal runs with.
@@ -414,6 +430,51 @@ impl<V: Lanes> RayData<V> {
     }
 }
 
+impl<V: Lanes> RayData<V> {
+    /// The nearest hit among the first `n` lanes of the packet, as
+    /// (lane, t, b1, b2); the divisions only for a packet with a hit.
+    #[inline(always)]
+    fn closest_in(&self, p: &TriPacket<V>, n: usize, tmax: f32) -> Option<(usize, f32, f32, f32)> {
+        let ([t, u, v, adet], mask) = self.triangles(p, tmax);
+        let mut mask = mask & lanes_of(n);
+        if mask == 0 {
+            return None;
+        }
+        let inv = V::splat(1.0) / adet;
+        let (t, u, v) = ((t * inv).to_array(), u * inv, v * inv);
+        let mut lane = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        while mask != 0 {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            if t[i] < t[lane] {
+                lane = i;
+            }
+        }
+        Some((lane, t[lane], u.to_array()[lane], v.to_array()[lane]))
+    }
+}
+
+/// The triangles `tris` (at most `PACKET`, vertex indices into
+/// `positions`), one lane each, as `Accel::gather` makes them; lanes past
+/// `tris.len()` are zero.
+#[inline(always)]
+fn gather_run<V: Lanes>(positions: &[Vec3], tris: &[[u32; 3]]) -> TriPacket<V> {
+    let mut f = [[[0.0f32; PACKET]; 3]; 3];
+    for (lane, tri) in tris.iter().enumerate() {
+        for (k, &v) in tri.iter().enumerate() {
+            let p = positions[v as usize];
+            f[k][0][lane] = p.x;
+            f[k][1][lane] = p.y;
+            f[k][2][lane] = p.z;
+        }
+    }
+    let [v0, v1, v2] = f.map(|c| c.map(V::from_array));
+    let e2 = [v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2]];
+    let e1n = [v0[0] - v1[0], v0[1] - v1[1], v0[2] - v1[2]];
+    TriPacket::new(v0, e1n, e2)
+}
+
 impl Accel {
     pub fn build(shapes: &[Shape]) -> Accel {
         let all: Vec<u32> = (0..shapes.len() as u32).collect();
@@ -498,6 +559,7 @@ impl Accel {
             other_refs: vec![],
             groups: group_accels,
             instances: kept,
+            direct: u32::MAX,
             extent: (extent.lo.into(), extent.hi.into()),
             level: SimdLevel::current(),
         };
@@ -521,6 +583,7 @@ impl Accel {
         accel.tris.shrink_to_fit();
         if n_tris > 0 && keeps_packets(n_tris) {
             accel.store_lanes();
+            accel.code_packed_leaves();
         }
         accel
     }
@@ -567,11 +630,17 @@ impl Accel {
     /// hold other triangles or zeros: callers mask them out.
     #[inline(always)]
     fn packet<V: Lanes>(&self, first: usize, refs: &[TriRef]) -> TriPacket<V> {
-        let TriLanes { stride, f } = &self.lanes;
-        if f.is_empty() {
+        if self.lanes.f.is_empty() {
             return self.gather(refs);
         }
-        debug_assert!(first + PACKET <= *stride && f.len() == 9 * stride);
+        self.lanes_at(first)
+    }
+
+    /// The stored lanes of `tris[first..]` (`first` < `tris.len()`).
+    #[inline(always)]
+    fn lanes_at<V: Lanes>(&self, first: usize) -> TriPacket<V> {
+        let TriLanes { stride, f } = &self.lanes;
+        assert!(first + PACKET <= *stride && f.len() == 9 * stride);
         let l = |row: usize| {
             // SAFETY: `first` < tris.len() and each row holds `stride` =
             // tris.len() + PACKET floats, so the 8 read are inside `f`.
@@ -584,6 +653,22 @@ impl Accel {
     /// gathers triangles from the meshes, as BVHs above
     /// `PACKED_MAX_TRIANGLES` do (for tests and measurements).
     pub fn gather_triangles(&mut self) {
+        if self.keeps_packets() {
+            // `DIRECT` words back to leaf indices: the leaf with triangles
+            // that starts at `first` (leaves are in `tris` order; leaves of
+            // other primitives alone start where the next one does).
+            let leaves = &self.leaves;
+            for c in self.nodes.iter_mut().flat_map(|n| n.children.iter_mut()) {
+                if *c & (LEAF | DIRECT) == LEAF | DIRECT {
+                    let first = (*c & !(LEAF | DIRECT)) >> 3;
+                    let mut i = leaves.partition_point(|l| l.tri_start < first);
+                    while leaves[i].tri_end == leaves[i].tri_start {
+                        i += 1;
+                    }
+                    *c = LEAF | i as u32;
+                }
+            }
+        }
         self.lanes = TriLanes::default();
         self.groups.iter_mut().for_each(Accel::gather_triangles);
     }
@@ -653,10 +738,64 @@ impl Accel {
                     cursor[mi] += 1;
                 }
             }
+            // The biggest renumbered mesh's leaves go into the child words.
+            let biggest = (0..a.meshes.len()).filter(|&mi| done[mi]).max_by_key(|&mi| a.meshes[mi].triangles.len());
+            if let Some(mi) = biggest {
+                a.direct_leaves(mi as u32);
+            }
         }
         let mut uses = vec![0u32; shapes.len()];
         count(self, &mut uses);
         reorder(self, shapes, &uses, force);
+    }
+
+    /// Codes every leaf of triangles alone as a `DIRECT` child word, for a
+    /// BVH that keeps its triangles as lanes.
+    fn code_packed_leaves(&mut self) {
+        for c in self.nodes.iter_mut().flat_map(|n| n.children.iter_mut()) {
+            if *c & (LEAF | DIRECT) != LEAF {
+                continue;
+            }
+            let leaf = self.leaves[(*c & !LEAF) as usize];
+            let n = leaf.tri_end - leaf.tri_start;
+            if leaf.other_start == leaf.other_end && n > 0 && n as usize <= PACKET && leaf.tri_start <= DIRECT_FIRST {
+                *c = LEAF | DIRECT | leaf.tri_start << 3 | (n - 1);
+            }
+        }
+    }
+
+    /// Turns every leaf holding only a run of consecutive triangles of mesh
+    /// `mi` (and not stored as lanes) into a `DIRECT` child word; frees
+    /// `leaves` and `tris` when no leaf is left that needs them.
+    fn direct_leaves(&mut self, mi: u32) {
+        if self.keeps_packets() || self.meshes[mi as usize].triangles.len() > DIRECT_FIRST as usize {
+            return;
+        }
+        self.direct = mi;
+        let mut left = 0usize;
+        for node in &mut self.nodes {
+            for c in &mut node.children {
+                if *c & (LEAF | DIRECT) != LEAF {
+                    continue;
+                }
+                let leaf = self.leaves[(*c & !LEAF) as usize];
+                let refs = &self.tris[leaf.tri_start as usize..leaf.tri_end as usize];
+                let run = leaf.other_start == leaf.other_end
+                    && !refs.is_empty()
+                    && refs.len() <= PACKET
+                    && refs.iter().enumerate().all(|(k, r)| r.mesh == mi && r.prim == refs[0].prim + k as u32);
+                if run {
+                    *c = LEAF | DIRECT | refs[0].prim << 3 | (refs.len() as u32 - 1);
+                } else {
+                    left += 1;
+                }
+            }
+        }
+        // An empty node's children (a root with nothing) are no leaves.
+        if left == 0 {
+            self.leaves = Vec::new();
+            self.tris = Vec::new();
+        }
     }
 
     /// Whether leaf triangles are stored as packets (else gathered).
@@ -831,6 +970,28 @@ impl Accel {
                     cur = keys[k - 1] as u32;
                     continue;
                 }
+            } else if cur & DIRECT != 0 {
+                let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
+                if self.keeps_packets() {
+                    if let Some((lane, t, u, v)) = r.closest_in(&self.lanes_at::<V>(first), n, tmax) {
+                        tmax = t;
+                        let tri = self.tris[first + lane];
+                        found = Some((PrimRef { shape: self.meshes[tri.mesh as usize].shape, prim: tri.prim }, u, v));
+                        if INSTANCES {
+                            instance = NO_INSTANCE;
+                        }
+                    }
+                } else {
+                    let m = &self.meshes[self.direct as usize];
+                    let p = gather_run::<V>(&m.positions, &m.triangles[first..first + n]);
+                    if let Some((lane, t, u, v)) = r.closest_in(&p, n, tmax) {
+                        tmax = t;
+                        found = Some((PrimRef { shape: m.shape, prim: (first + lane) as u32 }, u, v));
+                        if INSTANCES {
+                            instance = NO_INSTANCE;
+                        }
+                    }
+                }
             } else {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
                 for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
@@ -920,6 +1081,17 @@ impl Accel {
                         mask &= mask - 1;
                     }
                     continue;
+                }
+            } else if cur & DIRECT != 0 {
+                let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
+                let p = if self.keeps_packets() {
+                    self.lanes_at::<V>(first)
+                } else {
+                    let m = &self.meshes[self.direct as usize];
+                    gather_run::<V>(&m.positions, &m.triangles[first..first + n])
+                };
+                if r.triangles(&p, tmax).1 & lanes_of(n) != 0 {
+                    return true;
                 }
             } else {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
@@ -1334,10 +1506,18 @@ mod tests {
             let mut ordered_shapes = shapes.clone();
             let mut before = Accel::build_instanced(&shapes, &top, &groups, &instances);
             let mut after = Accel::build_instanced(&ordered_shapes, &top, &groups, &instances);
+            after.gather_triangles();
             after.leaf_order(&mut ordered_shapes, true);
             for a in [&mut before, &mut after] {
                 a.gather_triangles();
                 a.set_simd_level(level);
+            }
+            // The biggest mesh's leaves became direct child words, the
+            // others' stayed leaves.
+            for accel in [&after, &after.groups[0]] {
+                let codes = || accel.nodes.iter().flat_map(|n| n.children).filter(|c| c & LEAF != 0);
+                let direct = codes().filter(|c| c & DIRECT != 0).count();
+                assert!(accel.direct != u32::MAX && direct > 20 && codes().count() > direct, "{direct} direct leaves");
             }
             // Every leaf's triangles are a run of consecutive numbers.
             for accel in [&after, &after.groups[0]] {
