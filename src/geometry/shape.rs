@@ -184,6 +184,7 @@ impl Shape {
     }
 
     /// A point uniformly distributed over the surface (by area).
+    #[inline(always)]
     pub fn sample_position(&self, u: Vec2) -> Option<PositionSample> {
         match &self.geometry {
             ShapeGeometry::Sphere(s) => Some(s.sample_position(u)),
@@ -194,6 +195,10 @@ impl Shape {
     }
 
     /// A direction from `p` towards this shape, for emitter sampling.
+    /// (Inlined down to the shapes' sampling, as are they: samples returned
+    /// by value through memory were written in pieces and read back whole,
+    /// a store-forwarding stall.)
+    #[inline(always)]
     pub fn sample_direction(&self, p: Vec3, u: Vec2) -> Option<DirectionSample> {
         let ps = match &self.geometry {
             ShapeGeometry::Sphere(s) => return s.sample_direction(p, u),
