@@ -90,7 +90,7 @@ impl PathTracer {
             }
 
             // Continue the path by sampling the BSDF.
-            let Some(bs) = bsdf.sample::<S>(&ctx, si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
+            let Some(bs) = bsdf.sample_inline::<S>(&ctx, si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
             ctx = ctx.following(bs.lobe);
             let d = si.to_world(bs.wo);
             throughput *= bs.weight;
@@ -122,7 +122,9 @@ impl PathTracer {
 /// lobe): beta · f · L / p, weighted against
 /// BSDF sampling under `ctx` by the power heuristic (in full for a delta
 /// emitter). Takes one 2-D sample. Shared with `sppm`'s camera paths.
-#[inline]
+/// (Always inlined, as is the emitter sample it takes: results returned
+/// through memory stalled on store forwarding.)
+#[inline(always)]
 pub fn next_event<S: Spectrum>(
     scene: &Scene,
     si: &SurfaceInteraction,

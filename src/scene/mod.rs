@@ -278,7 +278,9 @@ impl Scene {
 
     /// Picks an emitter, then a direction towards it, and tests visibility
     /// with a shadow ray. `None` if nothing arrives. Weight and pdf include
-    /// the selection.
+    /// the selection. (Always inlined: returned through memory, the sample
+    /// was written in pieces and read back whole, a store-forwarding stall.)
+    #[inline(always)]
     pub fn sample_emitter<S: Spectrum>(&self, si: &SurfaceInteraction, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
         let (index, pmf, ux) = self.select_emitter(u.x, &ShadingPoint::from(si))?;
         let mut sample = self.emitters[index].sample_direct::<S>(self, si.p, Vec2::new(ux, u.y), wl)?;
