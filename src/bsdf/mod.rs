@@ -428,6 +428,23 @@ impl Bsdf {
     ) -> Option<BsdfSample<S>> {
         dispatch!(self, b => b.sample::<S>(ctx, si, wi, u1, u2, wl))
     }
+
+    /// [`Bsdf::sample`] always inlined, for the path tracer's bounce loop:
+    /// the sample returned through memory was written in pieces and read
+    /// back in wider loads (a store-forwarding stall); inlined, it stays in
+    /// registers.
+    #[inline(always)]
+    pub fn sample_inline<S: Spectrum>(
+        &self,
+        ctx: &BsdfContext,
+        si: &SurfaceInteraction,
+        wi: Vec3,
+        u1: f32,
+        u2: Vec2,
+        wl: &S::Wavelengths,
+    ) -> Option<BsdfSample<S>> {
+        dispatch!(self, b => b.sample::<S>(ctx, si, wi, u1, u2, wl))
+    }
 }
 
 #[cfg(test)]

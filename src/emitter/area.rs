@@ -84,7 +84,7 @@ impl AreaLight {
 
     /// A point on the shape seen from `p` (by the shape's own direction
     /// sampling: by area, or by solid angle for spheres).
-    #[inline]
+    #[inline(always)]
     pub fn sample_direction<S: Spectrum>(&self, scene: &Scene, p: Vec3, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
         let ds = scene.shapes[self.shape as usize].sample_direction(p, u)?;
         // Only the front side emits.

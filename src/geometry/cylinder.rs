@@ -139,6 +139,7 @@ impl Cylinder {
     }
 
     /// Uniform by area.
+    #[inline(always)]
     pub fn sample_position(&self, u: Vec2) -> PositionSample {
         let (s, c) = (2.0 * PI * u.y).sin_cos();
         let p = self.to_world.point(Vec3::new(c * self.radius, s * self.radius, u.x * self.length));

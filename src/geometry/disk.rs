@@ -49,6 +49,7 @@ impl Disk {
         Vec2::new(r, v)
     }
 
+    #[inline(always)]
     pub fn sample_position(&self, u: Vec2) -> PositionSample {
         let d = square_to_uniform_disk_concentric(u);
         let p = self.to_world.point(Vec3::new(d.x, d.y, 0.0));

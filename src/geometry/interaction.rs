@@ -27,6 +27,23 @@ pub struct SurfaceInteraction {
 }
 
 impl SurfaceInteraction {
+    /// An all-zero interaction: a slot for the `_into` queries
+    /// ([`crate::scene::Scene::intersect_into`]) to write into, reused
+    /// across a path's bounces.
+    pub const EMPTY: SurfaceInteraction = SurfaceInteraction {
+        p: Vec3::ZERO,
+        t: 0.0,
+        n: Vec3::ZERO,
+        frame: Frame { s: Vec3::ZERO, t: Vec3::ZERO, n: Vec3::ZERO },
+        uv: Vec2::ZERO,
+        dp_du: Vec3::ZERO,
+        dp_dv: Vec3::ZERO,
+        shape: 0,
+        prim: 0,
+        bary: Vec2::ZERO,
+        wi: Vec3::ZERO,
+    };
+
     #[inline]
     pub fn to_local(&self, v: Vec3) -> Vec3 {
         self.frame.to_local(v)

@@ -88,6 +88,7 @@ pub struct PositionSample {
 impl PositionSample {
     /// This point as a direction seen from `p`, its area density converted
     /// to solid angle by the Jacobian ‖x″ − x′‖² / |cos θ″|.
+    #[inline(always)]
     pub fn towards(&self, p: Vec3) -> Option<DirectionSample> {
         let v = self.p - p;
         let dist2 = v.length_squared();
@@ -253,6 +254,7 @@ impl Mesh {
     }
 
     /// Uniform by area over the whole mesh.
+    #[inline(always)]
     pub fn sample_position(&self, u: Vec2) -> Option<PositionSample> {
         if self.triangles.is_empty() || self.area() <= 0.0 {
             return None;

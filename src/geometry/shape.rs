@@ -51,7 +51,18 @@ impl Shape {
 
     /// The full interaction at a hit found by the accelerator, with the
     /// barycentrics (b1, b2) it reported for a triangle.
+    #[inline]
     pub fn interaction(&self, shape_index: u32, prim: u32, ray_o: Vec3, ray_d: Vec3, t: f32, bary: (f32, f32)) -> SurfaceInteraction {
+        let mut si = SurfaceInteraction::EMPTY;
+        self.interaction_into(shape_index, prim, ray_o, ray_d, t, bary, &mut si);
+        si
+    }
+
+    /// As [`Shape::interaction`], written straight into `out` (the caller's
+    /// slot): returned by value, the record was stored in pieces and copied
+    /// on in 16-byte loads, which stalled on store forwarding.
+    #[allow(clippy::too_many_arguments)]
+    pub fn interaction_into(&self, shape_index: u32, prim: u32, ray_o: Vec3, ray_d: Vec3, t: f32, bary: (f32, f32), out: &mut SurfaceInteraction) {
         let (p, n, sh_n, uv, bary) = match &self.geometry {
             ShapeGeometry::Mesh(m) => {
                 let i = prim as usize;
@@ -91,13 +102,14 @@ impl Shape {
                 (frame, if self.tangent_frame { frame.s } else { Vec3::ZERO }, if self.tangent_frame { frame.t } else { Vec3::ZERO })
             }
         };
-        SurfaceInteraction { p, t, n, frame, uv, dp_du, dp_dv, shape: shape_index, prim, bary, wi: frame.to_local(-ray_d) }
+        *out = SurfaceInteraction { p, t, n, frame, uv, dp_du, dp_dv, shape: shape_index, prim, bary, wi: frame.to_local(-ray_d) };
     }
 
     /// As [`Shape::interaction`] for a shape of a shape group placed by an
     /// instance with group-to-world transform `to_world`: the hit is found
     /// in the group's space (the ray mapped there) and moved to world space,
     /// normals by the inverse transpose, as Mitsuba's `instance` does.
+    #[inline]
     pub fn interaction_instanced(
         &self,
         to_world: &Transform,
@@ -108,7 +120,26 @@ impl Shape {
         t: f32,
         bary: (f32, f32),
     ) -> SurfaceInteraction {
-        let local = self.interaction(shape_index, prim, to_world.inverse_point(ray_o), to_world.inverse_vector(ray_d), t, bary);
+        let mut si = SurfaceInteraction::EMPTY;
+        self.interaction_instanced_into(to_world, shape_index, prim, ray_o, ray_d, t, bary, &mut si);
+        si
+    }
+
+    /// As [`Shape::interaction_instanced`], written straight into `out`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn interaction_instanced_into(
+        &self,
+        to_world: &Transform,
+        shape_index: u32,
+        prim: u32,
+        ray_o: Vec3,
+        ray_d: Vec3,
+        t: f32,
+        bary: (f32, f32),
+        out: &mut SurfaceInteraction,
+    ) {
+        self.interaction_into(shape_index, prim, to_world.inverse_point(ray_o), to_world.inverse_vector(ray_d), t, bary, out);
+        let local = &*out;
         let n = to_world.normal(local.n).normalize_or_zero();
         let sh_n = to_world.normal(local.frame.n).normalize_or_zero();
         let frame = if self.tangent_frame {
@@ -116,16 +147,14 @@ impl Shape {
         } else {
             Frame::from_normal(sh_n)
         };
-        SurfaceInteraction {
-            p: to_world.point(local.p),
-            t,
-            n,
-            frame,
-            dp_du: to_world.vector(local.dp_du),
-            dp_dv: to_world.vector(local.dp_dv),
-            wi: frame.to_local(-ray_d),
-            ..local
-        }
+        let (p, dp_du, dp_dv) = (to_world.point(local.p), to_world.vector(local.dp_du), to_world.vector(local.dp_dv));
+        out.p = p;
+        out.t = t;
+        out.n = n;
+        out.frame = frame;
+        out.dp_du = dp_du;
+        out.dp_dv = dp_dv;
+        out.wi = frame.to_local(-ray_d);
     }
 
     /// ∂p/∂u and ∂p/∂v at `p` on primitive `prim`, as Mitsuba 3.9 computes
@@ -155,6 +184,7 @@ impl Shape {
     }
 
     /// A point uniformly distributed over the surface (by area).
+    #[inline(always)]
     pub fn sample_position(&self, u: Vec2) -> Option<PositionSample> {
         match &self.geometry {
             ShapeGeometry::Sphere(s) => Some(s.sample_position(u)),
@@ -165,6 +195,10 @@ impl Shape {
     }
 
     /// A direction from `p` towards this shape, for emitter sampling.
+    /// (Inlined down to the shapes' sampling, as are they: samples returned
+    /// by value through memory were written in pieces and read back whole,
+    /// a store-forwarding stall.)
+    #[inline(always)]
     pub fn sample_direction(&self, p: Vec3, u: Vec2) -> Option<DirectionSample> {
         let ps = match &self.geometry {
             ShapeGeometry::Sphere(s) => return s.sample_direction(p, u),

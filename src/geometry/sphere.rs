@@ -84,6 +84,7 @@ impl Sphere {
         Vec2::new(phi * INV_TWO_PI, theta * INV_PI)
     }
 
+    #[inline(always)]
     pub fn sample_position(&self, u: Vec2) -> PositionSample {
         let local = square_to_uniform_sphere(u);
         let p = self.center + local * self.radius;
@@ -104,6 +105,7 @@ impl Sphere {
         Some((cos_max, sin2 / (1.0 + cos_max)))
     }
 
+    #[inline(always)]
     pub fn sample_direction(&self, p: Vec3, u: Vec2) -> Option<DirectionSample> {
         match self.cone(p) {
             Some((cos_max, one_minus)) => {

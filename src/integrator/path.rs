@@ -49,19 +49,23 @@ impl PathTracer {
         let mut prev_pdf = 0.0f32;
         let mut prev_delta = true;
         let mut ctx = BsdfContext::RADIANCE;
+        // One interaction slot for all bounces, written in place by the
+        // scene (a record returned by value was copied in pieces of another
+        // size: a store-forwarding stall).
+        let mut slot = SurfaceInteraction::EMPTY;
 
         loop {
-            let hit = scene.intersect_path(&ray, self.hide_emitters && depth == 0, sampler);
+            let hit = scene.intersect_path_into(&ray, self.hide_emitters && depth == 0, sampler, &mut slot);
             let visible = !(self.hide_emitters && depth == 0);
-            // By reference: the interaction stays where intersect_path wrote it.
-            let Some(si) = &hit else {
+            let si = &slot;
+            if !hit {
                 if visible {
                     if let Some(env) = scene.environment_radiance::<S>(ray.d, wl) {
                         result += throughput * env * escaped_weight(scene, &ShadingPoint { p: prev_p, n: prev_n }, prev_pdf, prev_delta, ray.d);
                     }
                 }
                 break;
-            };
+            }
             if visible {
                 if let Some(le) = scene.emitted::<S>(si, wl) {
                     result += throughput * le * hit_weight(scene, &ShadingPoint { p: prev_p, n: prev_n }, prev_pdf, prev_delta, si);
@@ -75,7 +79,8 @@ impl PathTracer {
             // Past a dispersive interface the direction (and, for a rough
             // one, the value of emitter samples) holds for the hero
             // wavelength only.
-            if bsdf.disperses() {
+            // (Asked only where there are wavelengths: RGB skips the call.)
+            if S::hero_wavelength(wl).is_some() && bsdf.disperses() {
                 S::terminate_secondary(wl);
             }
 
@@ -85,7 +90,7 @@ impl PathTracer {
             }
 
             // Continue the path by sampling the BSDF.
-            let Some(bs) = bsdf.sample::<S>(&ctx, si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
+            let Some(bs) = bsdf.sample_inline::<S>(&ctx, si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
             ctx = ctx.following(bs.lobe);
             let d = si.to_world(bs.wo);
             throughput *= bs.weight;
@@ -117,7 +122,9 @@ impl PathTracer {
 /// lobe): beta · f · L / p, weighted against
 /// BSDF sampling under `ctx` by the power heuristic (in full for a delta
 /// emitter). Takes one 2-D sample. Shared with `sppm`'s camera paths.
-#[inline]
+/// (Always inlined, as is the emitter sample it takes: results returned
+/// through memory stalled on store forwarding.)
+#[inline(always)]
 pub fn next_event<S: Spectrum>(
     scene: &Scene,
     si: &SurfaceInteraction,

@@ -73,35 +73,53 @@ const MAX_PASSES: u32 = 1024;
 impl Scene {
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceInteraction> {
-        let hit = self.accel.intersect(ray)?;
-        Some(self.interaction(&hit, ray))
+        let mut si = SurfaceInteraction::EMPTY;
+        self.intersect_into(ray, &mut si).then_some(si)
+    }
+
+    /// As [`Scene::intersect`], the interaction written straight into the
+    /// caller's slot `out` (left as it was on a miss); whether the ray hit.
+    /// For hot loops: a path reuses one slot across its bounces.
+    #[inline]
+    pub fn intersect_into(&self, ray: &Ray, out: &mut SurfaceInteraction) -> bool {
+        let Some(hit) = self.accel.intersect(ray) else { return false };
+        self.interaction_into(&hit, ray, out);
+        true
     }
 
     /// The full interaction at a hit the accelerator found along `ray`
-    /// (moved to world space for a shape placed by an instance).
+    /// (moved to world space for a shape placed by an instance), into `out`.
     #[inline]
-    fn interaction(&self, hit: &crate::geometry::accel::Hit, ray: &Ray) -> SurfaceInteraction {
+    fn interaction_into(&self, hit: &crate::geometry::accel::Hit, ray: &Ray, out: &mut SurfaceInteraction) {
         let shape = &self.shapes[hit.shape as usize];
         if hit.instance != crate::geometry::accel::NO_INSTANCE {
             let to_world = &self.accel.instance(hit.instance).to_world;
-            return shape.interaction_instanced(to_world, hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary);
+            return shape.interaction_instanced_into(to_world, hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary, out);
         }
-        shape.interaction(hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary)
+        shape.interaction_into(hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary, out)
     }
 
     /// The first hit on a shape that does not emit: Mitsuba's
     /// `hide_emitters` lets camera rays pass through emitting shapes.
     pub fn intersect_hiding_emitters(&self, ray: &Ray) -> Option<SurfaceInteraction> {
+        let mut si = SurfaceInteraction::EMPTY;
+        self.intersect_hiding_emitters_into(ray, &mut si).then_some(si)
+    }
+
+    /// As [`Scene::intersect_hiding_emitters`], into the caller's slot `out`.
+    pub fn intersect_hiding_emitters_into(&self, ray: &Ray, out: &mut SurfaceInteraction) -> bool {
         let mut ray = *ray;
         for _ in 0..64 {
-            let si = self.intersect(&ray)?;
-            if self.shapes[si.shape as usize].emitter.is_none() {
-                return Some(si);
+            if !self.intersect_into(&ray, out) {
+                return false;
             }
-            let o = si.spawn_origin(ray.d);
+            if self.shapes[out.shape as usize].emitter.is_none() {
+                return true;
+            }
+            let o = out.spawn_origin(ray.d);
             ray = Ray { o, d: ray.d, tmax: ray.tmax - (o - ray.o).length() };
         }
-        None
+        false
     }
 
     #[inline]
@@ -124,25 +142,36 @@ impl Scene {
     /// emitting shapes are passed too (camera rays of `hide_emitters`).
     #[inline]
     pub fn intersect_path(&self, ray: &Ray, hide_emitters: bool, sampler: &mut Sampler) -> Option<SurfaceInteraction> {
+        let mut si = SurfaceInteraction::EMPTY;
+        self.intersect_path_into(ray, hide_emitters, sampler, &mut si).then_some(si)
+    }
+
+    /// As [`Scene::intersect_path`], the interaction written straight into
+    /// the caller's slot `out`; whether a surface was met.
+    #[inline]
+    pub fn intersect_path_into(&self, ray: &Ray, hide_emitters: bool, sampler: &mut Sampler, out: &mut SurfaceInteraction) -> bool {
         if !self.pass_through {
-            return if hide_emitters { self.intersect_hiding_emitters(ray) } else { self.intersect(ray) };
+            return if hide_emitters { self.intersect_hiding_emitters_into(ray, out) } else { self.intersect_into(ray, out) };
         }
         let mut ray = *ray;
         for _ in 0..MAX_PASSES {
-            let si = self.intersect(&ray)?;
+            if !self.intersect_into(&ray, out) {
+                return false;
+            }
+            let si = &*out;
             let shape = &self.shapes[si.shape as usize];
             let pass = if shape.pass_through {
-                let alpha = self.bsdfs[shape.bsdf as usize].opacity(&si);
+                let alpha = self.bsdfs[shape.bsdf as usize].opacity(si);
                 alpha < 1.0 && !(alpha > 0.0 && sampler.next_1d() < alpha)
             } else {
                 hide_emitters && shape.emitter.is_some()
             };
             if !pass {
-                return Some(si);
+                return true;
             }
-            ray = Self::continue_past(&ray, &si);
+            ray = Self::continue_past(&ray, si);
         }
-        None
+        false
     }
 
     /// The fraction of light that gets through along the shadow ray `ray`:
@@ -159,13 +188,14 @@ impl Scene {
         }
         let mut ray = *ray;
         let mut tr = 1.0f32;
+        let mut si = SurfaceInteraction::EMPTY;
         for _ in 0..MAX_PASSES {
             let Some(hit) = self.accel.intersect(&ray) else { return tr };
             let shape = &self.shapes[hit.shape as usize];
             if !shape.pass_through {
                 return 0.0;
             }
-            let si = self.interaction(&hit, &ray);
+            self.interaction_into(&hit, &ray, &mut si);
             tr *= 1.0 - self.bsdfs[shape.bsdf as usize].opacity(&si);
             if !(tr > 0.0) {
                 return 0.0;
@@ -248,7 +278,9 @@ impl Scene {
 
     /// Picks an emitter, then a direction towards it, and tests visibility
     /// with a shadow ray. `None` if nothing arrives. Weight and pdf include
-    /// the selection.
+    /// the selection. (Always inlined: returned through memory, the sample
+    /// was written in pieces and read back whole, a store-forwarding stall.)
+    #[inline(always)]
     pub fn sample_emitter<S: Spectrum>(&self, si: &SurfaceInteraction, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
         let (index, pmf, ux) = self.select_emitter(u.x, &ShadingPoint::from(si))?;
         let mut sample = self.emitters[index].sample_direct::<S>(self, si.p, Vec2::new(ux, u.y), wl)?;
