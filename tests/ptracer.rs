@@ -46,53 +46,6 @@ fn ptracer_refuses_what_it_cannot_connect() {
     }
 }
 
-/// Two independent sets of passes agree: image means within `tol` and every
-/// `block`² block within its noise (two-sample z over the passes' spread).
-fn assert_agree(name: &str, a: &[Image], b: &[Image], block: u32, tol: f64) {
-    let (ma, mb) = (mean(&average(a)), mean(&average(b)));
-    eprintln!("{name}: means {ma:?} vs {mb:?}");
-    for c in 0..3 {
-        assert!(mb[c] > 0.0, "{name}: channel {c} is black");
-        assert!((ma[c] / mb[c] - 1.0).abs() < tol, "{name}: channel {c} means {} vs {}", ma[c], mb[c]);
-    }
-    let w = a[0].width;
-    let stats = |set: &[Image], bx: u32, by: u32, c: usize| {
-        let v: Vec<f64> = set
-            .iter()
-            .map(|img| {
-                let mut s = 0.0f64;
-                for y in by * block..(by + 1) * block {
-                    for x in bx * block..(bx + 1) * block {
-                        s += img.pixels[(y * w + x) as usize][c] as f64;
-                    }
-                }
-                s / (block * block) as f64
-            })
-            .collect();
-        let k = v.len() as f64;
-        let m = v.iter().sum::<f64>() / k;
-        (m, v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (k - 1.0) / k)
-    };
-    let (mut sum_z2, mut n, mut max_z) = (0.0, 0, 0.0f64);
-    for by in 0..a[0].height / block {
-        for bx in 0..w / block {
-            for c in 0..3 {
-                let ((m1, v1), (m2, v2)) = (stats(a, bx, by, c), stats(b, bx, by, c));
-                if v1 + v2 <= 1e-14 {
-                    continue;
-                }
-                let z = (m1 - m2) / (v1 + v2).sqrt();
-                sum_z2 += z * z;
-                n += 1;
-                max_z = max_z.max(z.abs());
-            }
-        }
-    }
-    let mean_z2 = sum_z2 / n.max(1) as f64;
-    eprintln!("{name}: {n} blocks, mean z² {mean_z2:.2}, max |z| {max_z:.2}");
-    assert!(mean_z2 < 2.0, "{name}: mean z² {mean_z2:.2}: a bias larger than the noise");
-    assert!(max_z < 6.0, "{name}: a block is {max_z:.1} standard errors off");
-}
 
 /// Light paths from infinity: tests/scenes/sky-sun-glass.xml with its glass
 /// sphere made diffuse (a light path cannot reach the camera through a

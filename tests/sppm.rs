@@ -171,47 +171,6 @@ fn cornell_box_error_falls(integrator: &str, name: &str, tolerance: f64) {
     }
 }
 
-/// A point light of intensity I at height h above a flat water surface
-/// (η = 1.333) over a white diffuse floor (ρ) at depth d, seen straight from
-/// above through the surface: light → surface → floor → surface → camera, a
-/// specular–diffuse–specular path that no camera path can complete (the
-/// light is a point, the surface a delta BSDF). `max_depth` 4 keeps exactly
-/// this path. Under the light, at normal incidence,
-///
-/// E = I · T₀ / (h + d/η)²   (the refracted cone of half-angle θ/η spreads over
-/// a disk of radius θ (h + d/η)), L_floor = ρ E / π, and the camera sees
-/// L = T₀ L_floor / η² (radiance leaving water for air), with Fresnel's
-/// T₀ = 1 − ((η − 1)/(η + 1))².
-fn pool_scene(integrator: &str) -> String {
-    format!(
-        r#"<scene version="3.0.0">
-    {integrator}
-    <sensor type="perspective">
-        <float name="fov" value="4"/>
-        <transform name="to_world"><lookat origin="0, 2, 0" target="0, 0, 0" up="0, 0, -1"/></transform>
-        <sampler type="independent"><integer name="sample_count" value="16"/></sampler>
-        <film type="hdrfilm">
-            <integer name="width" value="16"/>
-            <integer name="height" value="16"/>
-            <rfilter type="box"/>
-        </film>
-    </sensor>
-    <emitter type="point">
-        <point name="position" x="0" y="1" z="0"/>
-        <rgb name="intensity" value="10, 10, 10"/>
-    </emitter>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="10"/><rotate x="1" angle="-90"/></transform>
-        <bsdf type="dielectric"><float name="int_ior" value="1.333"/><float name="ext_ior" value="1"/></bsdf>
-    </shape>
-    <shape type="rectangle">
-        <transform name="to_world"><scale value="10"/><rotate x="1" angle="-90"/><translate y="-0.5"/></transform>
-        <bsdf type="diffuse"><rgb name="reflectance" value="0.8, 0.8, 0.8"/></bsdf>
-    </shape>
-</scene>
-"#
-    )
-}
 
 fn pool_expected() -> f64 {
     let (eta, h, d, intensity, rho) = (1.333f64, 1.0, 0.5, 10.0, 0.8);

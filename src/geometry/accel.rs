@@ -996,25 +996,10 @@ impl Accel {
                 let leaf = &self.leaves[(cur & !LEAF) as usize];
                 for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
                     let first = leaf.tri_start as usize + k * PACKET;
-                    let ([t, u, v, adet], mask) = r.triangles(&self.packet::<V>(first, refs), tmax);
-                    let mut mask = mask & lanes_of(refs.len());
-                    if mask != 0 {
-                        // The deferred division, only for packets with a hit.
-                        let inv = V::splat(1.0) / adet;
-                        let (t, u, v) = ((t * inv).to_array(), u * inv, v * inv);
-                        let mut lane = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        while mask != 0 {
-                            let i = mask.trailing_zeros() as usize;
-                            mask &= mask - 1;
-                            if t[i] < t[lane] {
-                                lane = i;
-                            }
-                        }
-                        tmax = t[lane];
+                    if let Some((lane, t, u, v)) = r.closest_in(&self.packet::<V>(first, refs), refs.len(), tmax) {
+                        tmax = t;
                         let tri = refs[lane];
-                        let pref = PrimRef { shape: self.meshes[tri.mesh as usize].shape, prim: tri.prim };
-                        found = Some((pref, u.to_array()[lane], v.to_array()[lane]));
+                        found = Some((PrimRef { shape: self.meshes[tri.mesh as usize].shape, prim: tri.prim }, u, v));
                         if INSTANCES {
                             instance = NO_INSTANCE;
                         }

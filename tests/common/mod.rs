@@ -259,3 +259,92 @@ pub fn furnace(shapes: &str, width: u32, height: u32) -> String {
     </scene>"#
     )
 }
+
+/// Two independent sets of passes agree: image means within `tol` and every
+/// `block`² block within its noise (two-sample z over the passes' spread).
+pub fn assert_agree(name: &str, a: &[Image], b: &[Image], block: u32, tol: f64) {
+    let (ma, mb) = (mean(&average(a)), mean(&average(b)));
+    eprintln!("{name}: means {ma:?} vs {mb:?}");
+    for c in 0..3 {
+        assert!(mb[c] > 0.0, "{name}: channel {c} is black");
+        assert!((ma[c] / mb[c] - 1.0).abs() < tol, "{name}: channel {c} means {} vs {}", ma[c], mb[c]);
+    }
+    let (w, h) = (a[0].width, a[0].height);
+    let block_mean = |img: &Image, bx: u32, by: u32, c: usize| {
+        let mut s = 0.0f64;
+        for y in by * block..(by + 1) * block {
+            for x in bx * block..(bx + 1) * block {
+                s += img.pixels[(y * w + x) as usize][c] as f64;
+            }
+        }
+        s / (block * block) as f64
+    };
+    let stats = |set: &[Image], bx, by, c| {
+        let v: Vec<f64> = set.iter().map(|i| block_mean(i, bx, by, c)).collect();
+        let k = v.len() as f64;
+        let m = v.iter().sum::<f64>() / k;
+        (m, v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (k - 1.0) / k)
+    };
+    let (mut sum_z2, mut n, mut max_z) = (0.0, 0, 0.0f64);
+    for by in 0..h / block {
+        for bx in 0..w / block {
+            for c in 0..3 {
+                let ((m1, v1), (m2, v2)) = (stats(a, bx, by, c), stats(b, bx, by, c));
+                if v1 + v2 <= 1e-14 {
+                    assert!((m1 - m2).abs() <= 1e-4 * (1.0 + m2.abs()), "{name}: noiseless block ({bx},{by}) differs");
+                    continue;
+                }
+                let z = (m1 - m2) / (v1 + v2).sqrt();
+                sum_z2 += z * z;
+                n += 1;
+                max_z = max_z.max(z.abs());
+            }
+        }
+    }
+    let mean_z2 = sum_z2 / n.max(1) as f64;
+    eprintln!("{name}: {n} blocks, mean z² {mean_z2:.2}, max |z| {max_z:.2}");
+    assert!(mean_z2 < 2.0, "{name}: mean z² {mean_z2:.2}: a bias larger than the noise");
+    assert!(max_z < 6.0, "{name}: a block is {max_z:.1} standard errors off");
+}
+
+/// A point light of intensity I at height h above a flat water surface
+/// (η = 1.333) over a white diffuse floor (ρ) at depth d, seen straight from
+/// above through the surface: light → surface → floor → surface → camera, a
+/// specular–diffuse–specular path that no camera path can complete (the
+/// light is a point, the surface a delta BSDF). `max_depth` 4 keeps exactly
+/// this path. Under the light, at normal incidence,
+///
+/// E = I · T₀ / (h + d/η)²   (the refracted cone of half-angle θ/η spreads over
+/// a disk of radius θ (h + d/η)), L_floor = ρ E / π, and the camera sees
+/// L = T₀ L_floor / η² (radiance leaving water for air), with Fresnel's
+/// T₀ = 1 − ((η − 1)/(η + 1))².
+pub fn pool_scene(integrator: &str) -> String {
+    format!(
+        r#"<scene version="3.0.0">
+    {integrator}
+    <sensor type="perspective">
+        <float name="fov" value="4"/>
+        <transform name="to_world"><lookat origin="0, 2, 0" target="0, 0, 0" up="0, 0, -1"/></transform>
+        <sampler type="independent"><integer name="sample_count" value="16"/></sampler>
+        <film type="hdrfilm">
+            <integer name="width" value="16"/>
+            <integer name="height" value="16"/>
+            <rfilter type="box"/>
+        </film>
+    </sensor>
+    <emitter type="point">
+        <point name="position" x="0" y="1" z="0"/>
+        <rgb name="intensity" value="10, 10, 10"/>
+    </emitter>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="10"/><rotate x="1" angle="-90"/></transform>
+        <bsdf type="dielectric"><float name="int_ior" value="1.333"/><float name="ext_ior" value="1"/></bsdf>
+    </shape>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="10"/><rotate x="1" angle="-90"/><translate y="-0.5"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.8, 0.8, 0.8"/></bsdf>
+    </shape>
+</scene>
+"#
+    )
+}
