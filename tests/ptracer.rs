@@ -3,7 +3,6 @@
 
 mod common;
 use common::*;
-use snell::film::Image;
 
 /// The Cornell box with its integrator swapped for `ptracer`, against
 /// Mitsuba's path-traced reference: the same expected image, reached from
