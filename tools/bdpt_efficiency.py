@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Efficiency of `bdpt` against `path` at (about) equal CPU time.
+"""Efficiency of `bdpt` (or `vcm`, --method vcm) against `path` at (about) equal CPU time.
 
 For each resolution: a long path-traced reference (--ref-spp, seed 1000; or
 --ref-pfm), then --runs renders (seeds 1..runs) with `bdpt` at --spp, then
@@ -21,6 +21,8 @@ reference long.
 Usage: python3 tools/bdpt_efficiency.py --scene scenes/caustic-cornell-box.xml
            [--res 64 --res 128] [--threads 2] [--ref-spp 16384] [--ref-method path] [--spp 64]
            [--runs 3] [--max-depth N] [-D key=value ...] [--ref-pfm FILE]
+       python3 tools/bdpt_efficiency.py --method vcm [--mode vcm|bpt|ppm] [--extra XML] ...
+           (--spp is then vcm's iterations)
 """
 import argparse
 import json
@@ -86,7 +88,10 @@ def main():
     ap.add_argument("--ref-spp", type=int, default=16384)
     ap.add_argument("--ref-method", choices=["path", "bdpt"], default="path",
                     help="the reference's integrator (bdpt for scenes whose path reference keeps fireflies)")
-    ap.add_argument("--spp", type=int, default=64, help="bdpt's samples per pixel")
+    ap.add_argument("--method", choices=["bdpt", "vcm"], default="bdpt", help="the method measured against path")
+    ap.add_argument("--mode", choices=["vcm", "bpt", "ppm"], default="vcm", help="vcm's mode (--method vcm)")
+    ap.add_argument("--extra", default="", help="more parameters of the method, as XML")
+    ap.add_argument("--spp", type=int, default=64, help="the method's samples per pixel (vcm: iterations)")
     ap.add_argument("--max-depth", default="$max_depth")
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("-D", dest="defines", action="append", default=[])
@@ -98,6 +103,8 @@ def main():
     depth = f'<integer name="max_depth" value="{args.max_depth}"/>'
     path_scene = variant(args, f'<integrator type="path">{depth}</integrator>', "path")
     bdpt_scene = variant(args, f'<integrator type="bdpt">{depth}</integrator>', "bdpt")
+    mode = f'<string name="mode" value="{args.mode}"/>' if args.method == "vcm" else ""
+    method_scene = variant(args, f'<integrator type="{args.method}">{depth}{mode}{args.extra}</integrator>', args.method)
     try:
         for k, res in enumerate(res_list):
             print(f"{args.scene} at {res} px, {args.threads} threads, load average {os.getloadavg()[0]:.2f}", flush=True)
@@ -109,13 +116,14 @@ def main():
                 ref_scene = bdpt_scene if args.ref_method == "bdpt" else path_scene
                 wall, cpu, ref = render(args, ref_scene, res, args.ref_spp, 1000, out)
                 print(f"  reference: {args.ref_method} {args.ref_spp} spp, cpu/threads {cpu:.1f} s ({out})", flush=True)
-            eff_bdpt, t_bdpt = measure(args, "bdpt", bdpt_scene, res, args.spp, ref)
+            name = args.mode if args.method == "vcm" else "bdpt"
+            eff_m, t_m = measure(args, name, method_scene, res, args.spp, ref)
             _, t16, _ = render(args, path_scene, res, 16, 999, f"/tmp/bdpt-eff-{args.tag}-cal.pfm")
-            spp = max(1, round(16 * t_bdpt / max(t16, 1e-3)))
+            spp = max(1, round(16 * t_m / max(t16, 1e-3)))
             eff_path, _ = measure(args, "path", path_scene, res, spp, ref)
-            print(f"  bdpt / path efficiency: {eff_bdpt / eff_path:.2f}x, load average {os.getloadavg()[0]:.2f}", flush=True)
+            print(f"  {name} / path efficiency: {eff_m / eff_path:.2f}x, load average {os.getloadavg()[0]:.2f}", flush=True)
     finally:
-        for p in (path_scene, bdpt_scene):
+        for p in {path_scene, bdpt_scene, method_scene}:
             if os.path.exists(p):
                 os.remove(p)
 

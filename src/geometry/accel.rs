@@ -469,6 +469,13 @@ fn gather_run<V: Lanes>(positions: &[Vec3], tris: &[[u32; 3]]) -> TriPacket<V> {
             f[k][2][lane] = p.z;
         }
     }
+    packet_of_corners(f)
+}
+
+/// The packet of triangles whose corners (corner, axis, lane) were gathered
+/// into `f`: the form both gathers end in.
+#[inline(always)]
+fn packet_of_corners<V: Lanes>(f: [[[f32; PACKET]; 3]; 3]) -> TriPacket<V> {
     let [v0, v1, v2] = f.map(|c| c.map(V::from_array));
     let e2 = [v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2]];
     let e1n = [v0[0] - v1[0], v0[1] - v1[1], v0[2] - v1[2]];
@@ -619,10 +626,7 @@ impl Accel {
                 f[k][2][lane] = p.z;
             }
         }
-        let [v0, v1, v2] = f.map(|c| c.map(V::from_array));
-        let e2 = [v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2]];
-        let e1n = [v0[0] - v1[0], v0[1] - v1[1], v0[2] - v1[2]];
-        TriPacket::new(v0, e1n, e2)
+        packet_of_corners(f)
     }
 
     /// The triangles `refs`, which are `tris[first..]`: loaded from the
