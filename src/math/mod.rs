@@ -6,6 +6,7 @@ pub mod frame;
 pub mod rng;
 pub mod sampling;
 pub mod transform;
+pub mod trig;
 
 pub use frame::Frame;
 pub use rng::Pcg32;

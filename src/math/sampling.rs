@@ -1,6 +1,7 @@
 //! Warps from the unit square to the domains the renderer samples, each with
 //! its density. The chi² tests of the BSDFs rely on these pdfs being exact.
 
+use super::trig::sin_cos_quarter;
 use super::{INV_FOUR_PI, INV_PI, PI};
 use glam::{Vec2, Vec3};
 
@@ -12,13 +13,15 @@ pub fn square_to_uniform_disk_concentric(u: Vec2) -> Vec2 {
     if x == 0.0 && y == 0.0 {
         return Vec2::ZERO;
     }
-    let (r, phi) = if x.abs() > y.abs() {
-        (x, (PI / 4.0) * (y / x))
+    // φ = π/4 · y/x, or π/2 − π/4 · x/y (sine and cosine swapped): the
+    // angle the polynomials take stays within ±π/4 ([`super::trig`]).
+    if x.abs() > y.abs() {
+        let (s, c) = sin_cos_quarter((PI / 4.0) * (y / x));
+        Vec2::new(x * c, x * s)
     } else {
-        (y, (PI / 2.0) - (PI / 4.0) * (x / y))
-    };
-    let (s, c) = phi.sin_cos();
-    Vec2::new(r * c, r * s)
+        let (s, c) = sin_cos_quarter((PI / 4.0) * (x / y));
+        Vec2::new(y * s, y * c)
+    }
 }
 
 /// Cosine-weighted hemisphere around +z (Malley's method); pdf = cosθ/π.
