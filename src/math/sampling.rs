@@ -72,15 +72,18 @@ pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
 /// Uniform barycentrics (b1, b2) on a triangle (Heitz 2019 low-distortion map).
 #[inline]
 pub fn square_to_uniform_triangle(u: Vec2) -> Vec2 {
-    if u.y > u.x {
-        let b0 = u.x * 0.5;
-        let b1 = u.y - b0;
-        Vec2::new(b0, b1)
-    } else {
-        let b1 = u.y * 0.5;
-        let b0 = u.x - b1;
-        Vec2::new(b0, b1)
-    }
+    // Both halves computed and one chosen by a mask: the choice is a coin
+    // flip per sample, which a branch mispredicts half the time.
+    let (hx, hy) = (u.x * 0.5, u.y * 0.5);
+    let upper = u.y > u.x;
+    Vec2::new(select(upper, hx, u.x - hy), select(upper, u.y - hx, hy))
+}
+
+/// `if c { a } else { b }` without a branch (both already computed).
+#[inline(always)]
+pub fn select(c: bool, a: f32, b: f32) -> f32 {
+    let m = (c as u32).wrapping_neg();
+    f32::from_bits((a.to_bits() & m) | (b.to_bits() & !m))
 }
 
 /// A discrete distribution over non-negative weights, sampled by its CDF.
@@ -130,7 +133,9 @@ impl DiscreteDistribution {
     pub fn sample_reuse(&self, u: f32) -> (usize, f32) {
         let n = self.cdf.len();
         let i = self.cdf.partition_point(|&c| c <= u).min(n - 1);
-        let lo = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        // The bin's lower end without a branch on i (for a few bins, as an
+        // emitting rectangle's two triangles, it is a coin flip).
+        let lo = select(i == 0, 0.0, self.cdf[i.saturating_sub(1)]);
         let w = self.cdf[i] - lo;
         let r = if w > 0.0 { ((u - lo) / w).clamp(0.0, 1.0 - f32::EPSILON / 2.0) } else { 0.0 };
         (i, r)
