@@ -64,7 +64,10 @@ impl BsdfModel for Diffuse {
         if wi.z <= 0.0 || !ctx.wants(Lobe::DIFFUSE_REFLECTION) { 0.0 } else { cosine_hemisphere_pdf(wo) }
     }
 
-    #[inline]
+    // Always inlined: returned through memory, the sample's direction was
+    // stored in pieces and read back in one wider load (a store-forwarding
+    // stall in the path tracer's bounce loop).
+    #[inline(always)]
     fn sample<S: Spectrum>(&self, ctx: &BsdfContext, si: &SurfaceInteraction, wi: Vec3, _u1: f32, u: Vec2, wl: &S::Wavelengths) -> Option<BsdfSample<S>> {
         if wi.z <= 0.0 || !ctx.wants(Lobe::DIFFUSE_REFLECTION) {
             return None;
