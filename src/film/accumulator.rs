@@ -66,6 +66,21 @@ pub fn fixed_weight(w: f32) -> i64 {
     ((w * WEIGHT_SCALE) as i32).clamp(-(1 << WEIGHT_BITS), 1 << WEIGHT_BITS) as i64
 }
 
+/// `x.ceil() as i32` (saturating, NaN as 0) without a call into the C
+/// library (the baseline x86-64 target has no rounding instruction).
+#[inline(always)]
+fn ceil_i32(x: f32) -> i32 {
+    let t = x as i32;
+    if (t as f32) < x { t.saturating_add(1) } else { t }
+}
+
+/// `x.floor() as i32` (saturating, NaN as 0), as [`ceil_i32`].
+#[inline(always)]
+fn floor_i32(x: f32) -> i32 {
+    let t = x as i32;
+    if (t as f32) > x { t.saturating_sub(1) } else { t }
+}
+
 /// The exact term `w`·`v` of fixed-point weight and value, in units of 2^−52.
 #[inline(always)]
 pub fn term(w: i64, v: i64) -> i128 {
@@ -186,10 +201,10 @@ impl Sink {
     pub fn add_sample(&mut self, filter: &Filter, pos: Vec2, rgb: Rgb, s123: Option<&[Rgb; 3]>, extra: &[f32]) {
         let r = filter.radius();
         // Pixel i has its centre at i + 0.5; clamp the footprint to the sink.
-        let x0 = ((pos.x - 0.5 - r).ceil() as i32).max(self.x0);
-        let x1 = ((pos.x - 0.5 + r).floor() as i32).min(self.x0 + self.width as i32 - 1);
-        let y0 = ((pos.y - 0.5 - r).ceil() as i32).max(self.y0);
-        let y1 = ((pos.y - 0.5 + r).floor() as i32).min(self.y0 + self.height as i32 - 1);
+        let x0 = ceil_i32(pos.x - 0.5 - r).max(self.x0);
+        let x1 = floor_i32(pos.x - 0.5 + r).min(self.x0 + self.width as i32 - 1);
+        let y0 = ceil_i32(pos.y - 0.5 - r).max(self.y0);
+        let y1 = floor_i32(pos.y - 0.5 + r).min(self.y0 + self.height as i32 - 1);
         if x1 < x0 || y1 < y0 {
             return;
         }
@@ -226,7 +241,10 @@ impl Sink {
             if narrow {
                 // No sum can overflow: |sum| ≤ `load` ≤ i64::MAX.
                 for (n, &wxi) in self.narrow[row..row + nx].iter_mut().zip(&wx[..nx]) {
-                    let w = (wxi * wy[j] * WEIGHT_SCALE) as i64;
+                    // SAFETY: both weights are within ±1 (`in_range`), so the
+                    // product is within ±2^20, finite and representable: the
+                    // unchecked conversion truncates as `as` would.
+                    let w: i64 = unsafe { (wxi * wy[j] * WEIGHT_SCALE).to_int_unchecked() };
                     for k in 0..4 {
                         n[k] += w * v[k];
                     }
@@ -890,6 +908,22 @@ fn coalesce(mut ranges: Vec<Range<u32>>) -> Vec<Range<u32>> {
 mod tests {
     use super::*;
     use crate::film::FilterKind;
+
+    #[test]
+    fn integer_ceil_and_floor_match_the_library() {
+        let mut xs = vec![0.0f32, -0.0, 0.5, -0.5, 1.0, -1.0, 1.5, -1.5, 2.0 - 1e-7, -2.0 + 1e-7, 1e-30, -1e-30];
+        xs.extend([16777217.0, -16777217.0, 2147483520.0, 2147483648.0, -2147483648.0, 3e9, -3e9, 1e30, -1e30]);
+        xs.extend([f32::INFINITY, f32::NEG_INFINITY, f32::NAN, f32::MAX, f32::MIN, f32::MIN_POSITIVE]);
+        let mut state = 12345u32;
+        for _ in 0..100_000 {
+            state = state.wrapping_mul(747796405).wrapping_add(2891336453);
+            xs.push(((state >> 8) as f32 / (1u32 << 24) as f32 - 0.5) * 2000.0);
+        }
+        for x in xs {
+            assert_eq!(ceil_i32(x), x.ceil() as i32, "ceil {x}");
+            assert_eq!(floor_i32(x), x.floor() as i32, "floor {x}");
+        }
+    }
 
     fn header(layout: Layout) -> StateHeader {
         StateHeader {

@@ -124,7 +124,9 @@ impl Filter {
         if !(f < (LUT - 1) as f32) {
             return 0.0;
         }
-        let i = f as usize;
+        // SAFETY: 0 ≤ f < LUT − 1 here (a NaN fails the test above), so the
+        // conversion is in range and truncates as `as` would.
+        let i = unsafe { f.to_int_unchecked::<u32>() } as usize;
         let t = f - i as f32;
         let [a, b] = self.segments[i];
         a + (b - a) * t
