@@ -79,11 +79,11 @@ pub fn square_to_uniform_triangle(u: Vec2) -> Vec2 {
     Vec2::new(select(upper, hx, u.x - hy), select(upper, u.y - hx, hy))
 }
 
-/// `if c { a } else { b }` without a branch (both already computed).
+/// `if c { a } else { b }` without a branch (both already computed; a
+/// select written with bit masks was turned back into a branch).
 #[inline(always)]
 pub fn select(c: bool, a: f32, b: f32) -> f32 {
-    let m = (c as u32).wrapping_neg();
-    f32::from_bits((a.to_bits() & m) | (b.to_bits() & !m))
+    std::hint::select_unpredictable(c, a, b)
 }
 
 /// A discrete distribution over non-negative weights, sampled by its CDF.
