@@ -127,7 +127,7 @@ impl Rectangle {
     /// too (no difference of angles near 2π).
     #[inline]
     fn local(&self, o: Vec3) -> Option<(f32, f32, f32, f32)> {
-        if self.area < MIN_AREA_OVER_DIST2 * (self.center - o).length_squared() {
+        if !self.seen_wide(o) {
             return None;
         }
         let d = self.s - o;
@@ -152,15 +152,35 @@ impl Rectangle {
 
     /// The solid angle of the rectangle seen from `o`, where it is sampled
     /// by solid angle ([`Rectangle::spherical`] is `Some` exactly there).
-    #[inline]
+    #[inline(always)]
     pub fn solid_angle(&self, o: Vec3) -> Option<f32> {
+        if !self.seen_wide(o) {
+            return None;
+        }
         self.local(o).map(|l| l.3)
+    }
+
+    /// Whether the rectangle is seen wide enough from `o` to be sampled by
+    /// solid angle (the first test of [`Rectangle::local`], inlined into
+    /// every caller: from most shading points it fails, and then costs no
+    /// call).
+    #[inline(always)]
+    fn seen_wide(&self, o: Vec3) -> bool {
+        !(self.area < MIN_AREA_OVER_DIST2 * (self.center - o).length_squared())
     }
 
     /// The spherical rectangle seen from `o`, or `None` where area sampling
     /// is used (see the module documentation).
-    #[inline]
+    #[inline(always)]
     pub fn spherical(&self, o: Vec3) -> Option<Spherical> {
+        if !self.seen_wide(o) {
+            return None;
+        }
+        self.spherical_wide(o)
+    }
+
+    #[inline(never)]
+    fn spherical_wide(&self, o: Vec3) -> Option<Spherical> {
         let (x0, y0, z0, solid_angle) = self.local(o)?;
         let (x1, y1) = (x0 + self.w, y0 + self.h);
         // z components of the unit normals of the four edges' planes
