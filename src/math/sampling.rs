@@ -72,18 +72,20 @@ pub fn uniform_cone_pdf(cos_max: f32) -> f32 {
 /// Uniform barycentrics (b1, b2) on a triangle (Heitz 2019 low-distortion map).
 #[inline]
 pub fn square_to_uniform_triangle(u: Vec2) -> Vec2 {
-    // Both halves computed and one chosen by a mask: the choice is a coin
-    // flip per sample, which a branch mispredicts half the time.
+    // Both halves computed and one kept: the choice is a coin flip per
+    // sample, which a branch mispredicts half the time.
     let (hx, hy) = (u.x * 0.5, u.y * 0.5);
     let upper = u.y > u.x;
     Vec2::new(select(upper, hx, u.x - hy), select(upper, u.y - hx, hy))
 }
 
-/// `if c { a } else { b }` without a branch (both already computed; a
-/// select written with bit masks was turned back into a branch).
+/// `if c { a } else { b }` for finite `a` and `b`, by arithmetic
+/// (a·1 + b·0, exact; only a −0 may come out as +0): the compiler turned selects, even
+/// `std::hint::select_unpredictable` and bit masks, back into branches.
 #[inline(always)]
 pub fn select(c: bool, a: f32, b: f32) -> f32 {
-    std::hint::select_unpredictable(c, a, b)
+    let m = c as u32 as f32;
+    a * m + b * (1.0 - m)
 }
 
 /// A discrete distribution over non-negative weights, sampled by its CDF.
@@ -135,7 +137,7 @@ impl DiscreteDistribution {
         let i = self.cdf.partition_point(|&c| c <= u).min(n - 1);
         // The bin's lower end without a branch on i (for a few bins, as an
         // emitting rectangle's two triangles, it is a coin flip).
-        let lo = select(i == 0, 0.0, self.cdf[i.saturating_sub(1)]);
+        let lo = self.cdf[i.saturating_sub(1)] * (i != 0) as u32 as f32;
         let w = self.cdf[i] - lo;
         let r = if w > 0.0 { ((u - lo) / w).clamp(0.0, 1.0 - f32::EPSILON / 2.0) } else { 0.0 };
         (i, r)
