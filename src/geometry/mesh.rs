@@ -235,18 +235,14 @@ impl Mesh {
     }
 
     /// Shading normal and uv at barycentrics (b1, b2) of triangle `i`.
-    /// (Inlined for a mesh without vertex normals and uvs, which needs
-    /// neither its corners' indices nor a call.)
+    /// (Always inlined: called, its result came back through memory. A
+    /// mesh without vertex normals and uvs needs neither its corners'
+    /// indices nor any arithmetic.)
     #[inline(always)]
     pub fn shading(&self, i: usize, b1: f32, b2: f32, face_n: Vec3) -> (Vec3, Vec2) {
         if self.normals.is_none() && self.uvs.is_none() {
             return (face_n, Vec2::new(b1, b2));
         }
-        self.shading_interpolated(i, b1, b2, face_n)
-    }
-
-    #[inline(never)]
-    fn shading_interpolated(&self, i: usize, b1: f32, b2: f32, face_n: Vec3) -> (Vec3, Vec2) {
         let [ia, ib, ic] = self.triangles[i];
         let b0 = 1.0 - b1 - b2;
         let sh_n = match &self.normals {
