@@ -137,7 +137,7 @@ impl DiscreteDistribution {
         let i = self.cdf.partition_point(|&c| c <= u).min(n - 1);
         // The bin's lower end without a branch on i (for a few bins, as an
         // emitting rectangle's two triangles, it is a coin flip).
-        let lo = self.cdf[i.saturating_sub(1)] * (i != 0) as u32 as f32;
+        let lo = self.cdf[i.saturating_sub(1)] * (i as f32).min(1.0);
         let w = self.cdf[i] - lo;
         let r = if w > 0.0 { ((u - lo) / w).clamp(0.0, 1.0 - f32::EPSILON / 2.0) } else { 0.0 };
         (i, r)
