@@ -107,6 +107,14 @@ pub fn dpsi_dx(p: u32, n: f64, x: f64) -> f64 {
     -(2.0 / cos_i - 2.0 * p as f64 / n_cos_r)
 }
 
+/// dφ/dx.
+#[inline]
+pub fn dphi_dx(p: u32, n: f64, x: f64) -> f64 {
+    let cos_i = (1.0 - x * x).max(1e-300).sqrt();
+    let n_cos_r = (n * n - x * x).max(1e-300).sqrt();
+    -1.0 / cos_i + 2.0 * p as f64 / n_cos_r
+}
+
 /// Polar angle of the exit point, from d.
 #[inline]
 pub fn phi_exit(p: u32, n: f64, x: f64) -> f64 {
@@ -342,8 +350,21 @@ fn connect_one<S: Spectrum>(
             if w.dot(to_eye) < 1.0 - 5e-7 {
                 return; // the fixed point did not settle (at a caustic's edge)
             }
-            let j = intensity(p, n, x);
-            if !(j > 0.0) {
+            // Irradiance at the pinhole per unit flux on the cross-section,
+            // exact at finite distance: the rays' spread across the pinhole
+            // is |M| dx in the plane of d (M from the exit point's motion and
+            // the direction's turn) and ρ dα around the axis (the pinhole's
+            // distance from the line through c along d); far away this is
+            // J / distance².
+            let along = (eye - e).length();
+            let rho_axis = {
+                let q = eye - c;
+                (q - d * d.dot(q)).length()
+            };
+            let m = a * dphi_dx(p, n, x) * (phi - psi_x).cos() + along * dpsi_dx(p, n, x);
+            let den = PI * m.abs() * rho_axis;
+            let irradiance = fresnel_chain(p, n, x) * x / den;
+            if !(den > 0.0) || !(irradiance > 0.0 && irradiance.is_finite()) {
                 return;
             }
             let e32 = e.as_vec3();
@@ -359,7 +380,7 @@ fn connect_one<S: Spectrum>(
             if !(tr > 0.0) {
                 return;
             }
-            let k = (j as f32) * tr * cc.importance / (cc.dist * cc.dist);
+            let k = (irradiance as f32) * tr * cc.importance;
             let value = beta * scale * finite_or_zero(k);
             let rgb = value.to_rgb(wl);
             if rgb.is_finite() {
