@@ -52,11 +52,29 @@ fn reflections_off_drops_match_path_tracing() {
     let dir = repo("tests/scenes");
     let ptracer = r#"<integrator type="ptracer"><integer name="max_depth" value="3"/><boolean name="sphere_connection" value="true"/></integrator>"#;
     let path = r#"<integrator type="path"><integer name="max_depth" value="3"/></integrator>"#;
-    let a = render_passes(&dir.join("drops.xml"), Some(&drops_scene(ptracer)), params(&[]), 8, 32);
-    let b = render_passes(&dir.join("drops.xml"), Some(&drops_scene(path)), params(&[]), 8, 256);
+    let a = render_passes(
+        &dir.join("drops.xml"),
+        Some(&drops_scene(ptracer)),
+        params(&[]),
+        8,
+        32,
+    );
+    let b = render_passes(
+        &dir.join("drops.xml"),
+        Some(&drops_scene(path)),
+        params(&[]),
+        8,
+        256,
+    );
     assert_agree("drops, reflections", &a, &b, 8, 0.01);
     // Without the connection the drops stay black to the light paths.
-    let off = render_passes(&dir.join("drops.xml"), Some(&drops_scene(&ptracer.replace("true", "false"))), params(&[]), 1, 8);
+    let off = render_passes(
+        &dir.join("drops.xml"),
+        Some(&drops_scene(&ptracer.replace("true", "false"))),
+        params(&[]),
+        1,
+        8,
+    );
     assert_eq!(mean(&off[0]), [0.0; 3]);
 }
 
@@ -68,7 +86,10 @@ fn reflections_off_drops_match_path_tracing() {
 /// of drops about once in 1e6), and `ptracer` with the sphere connection.
 pub fn sky_scene() -> String {
     let text = std::fs::read_to_string(repo("scenes/rainbow.xml")).expect("scenes/rainbow.xml");
-    let (a, b) = (text.find("<integrator").expect("integrator"), text.find("</integrator>").expect("integrator end"));
+    let (a, b) = (
+        text.find("<integrator").expect("integrator"),
+        text.find("</integrator>").expect("integrator end"),
+    );
     let text = format!(
         "{}{}{}",
         &text[..a],
@@ -102,12 +123,18 @@ fn sky_rainbow_by_particle_tracing() {
         32,
     )
     .remove(0);
-    eprintln!("sky: {res}² at 32 spp in {:.1} s", t.elapsed().as_secs_f64());
+    eprintln!(
+        "sky: {res}² at 32 spp in {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
     let tan_half = 60f64.to_radians().tan();
     let mut rings = vec![([0.0f64; 3], 0usize); 90];
     for y in 0..res {
         for x in 0..res {
-            let (sx, sy) = ((2.0 * (x as f64 + 0.5) / res as f64 - 1.0) * tan_half, (2.0 * (y as f64 + 0.5) / res as f64 - 1.0) * tan_half);
+            let (sx, sy) = (
+                (2.0 * (x as f64 + 0.5) / res as f64 - 1.0) * tan_half,
+                (2.0 * (y as f64 + 0.5) / res as f64 - 1.0) * tan_half,
+            );
             let angle = (sx * sx + sy * sy).sqrt().atan().to_degrees();
             let ring = &mut rings[angle as usize];
             let p = img.pixels[(y * res + x) as usize];
@@ -143,12 +170,27 @@ fn sky_rainbow_by_particle_tracing() {
     // Red outside in the primary: the 41–42° ring (beyond violet's edge) is
     // redder than the bow within 38–40°.
     let (edge, body) = (band(41, 42), band(38, 40));
-    assert!(ratio(edge) > 1.15 * ratio(body), "primary R/B {} at 41–42° vs {} at 38–40°", ratio(edge), ratio(body));
+    assert!(
+        ratio(edge) > 1.15 * ratio(body),
+        "primary R/B {} at 41–42° vs {} at 38–40°",
+        ratio(edge),
+        ratio(body)
+    );
     // (The secondary, ten times fainter per ring at this sample count, is
     // not asserted here; tests/rainbow.rs measures it in Descartes' setup.)
     for c in 0..3 {
         // Alexander's band is darker than the bow and than the sky inside the primary.
-        assert!(primary[c] > 1.2 * dark[c], "channel {c}: primary {} vs Alexander's band {}", primary[c], dark[c]);
-        assert!(dark[c] < inside[c], "channel {c}: Alexander's band {} vs inside {}", dark[c], inside[c]);
+        assert!(
+            primary[c] > 1.2 * dark[c],
+            "channel {c}: primary {} vs Alexander's band {}",
+            primary[c],
+            dark[c]
+        );
+        assert!(
+            dark[c] < inside[c],
+            "channel {c}: Alexander's band {} vs inside {}",
+            dark[c],
+            inside[c]
+        );
     }
 }

@@ -128,7 +128,11 @@ pub fn phi_exit(p: u32, n: f64, x: f64) -> f64 {
 pub fn fresnel_chain(p: u32, n: f64, x: f64) -> f64 {
     let cos_i = (1.0 - x * x).max(0.0).sqrt();
     let r = crate::bsdf::fresnel::fresnel_dielectric(cos_i as f32, n as f32).r as f64;
-    if p == 0 { r } else { (1.0 - r) * (1.0 - r) * r.powi(p as i32 - 1) }
+    if p == 0 {
+        r
+    } else {
+        (1.0 - r) * (1.0 - r) * r.powi(p as i32 - 1)
+    }
 }
 
 /// Intensity per unit flux (1/sr) the chain sends at root x (see the doc).
@@ -176,10 +180,18 @@ pub fn solve_piece(p: u32, n: f64, lo: f64, hi: f64, t: f64, x0: Option<f64>) ->
         if f.abs() < 1e-12 {
             return Some(x);
         }
-        if (f > 0.0) == rising { b = x } else { a = x }
+        if (f > 0.0) == rising {
+            b = x
+        } else {
+            a = x
+        }
         let d = dpsi_dx(p, n, x);
         let newton = x - f / d;
-        x = if d != 0.0 && newton > a && newton < b { newton } else { 0.5 * (a + b) };
+        x = if d != 0.0 && newton > a && newton < b {
+            newton
+        } else {
+            0.5 * (a + b)
+        };
         if (b - a) < 1e-13 {
             return Some(x);
         }
@@ -216,15 +228,29 @@ pub struct SphereHit<'a> {
 }
 
 /// The sphere at `si` if the connection applies there (see the doc).
-pub fn sphere_at<'a>(scene: &'a Scene, si: &SurfaceInteraction, bsdf: &'a Bsdf) -> Option<SphereHit<'a>> {
-    let Bsdf::Dielectric(dielectric) = bsdf else { return None };
-    let ShapeGeometry::Sphere(s) = &scene.shapes[si.shape as usize].geometry else { return None };
+pub fn sphere_at<'a>(
+    scene: &'a Scene,
+    si: &SurfaceInteraction,
+    bsdf: &'a Bsdf,
+) -> Option<SphereHit<'a>> {
+    let Bsdf::Dielectric(dielectric) = bsdf else {
+        return None;
+    };
+    let ShapeGeometry::Sphere(s) = &scene.shapes[si.shape as usize].geometry else {
+        return None;
+    };
     if s.flip_normals || !(si.wi.z > 0.0) {
         return None;
     }
     let off = si.p - s.center;
-    if (off.length() - s.radius).abs() <= 1e-4 * s.radius && off.normalize_or_zero().dot(si.n) > 0.9999 {
-        return Some(SphereHit { center: s.center, radius: s.radius, bsdf: dielectric });
+    if (off.length() - s.radius).abs() <= 1e-4 * s.radius
+        && off.normalize_or_zero().dot(si.n) > 0.9999
+    {
+        return Some(SphereHit {
+            center: s.center,
+            radius: s.radius,
+            bsdf: dielectric,
+        });
     }
     // Placed by an instance: the chord along the inward normal is a diameter.
     let inward = -si.n;
@@ -233,7 +259,11 @@ pub fn sphere_at<'a>(scene: &'a Scene, si: &SurfaceInteraction, bsdf: &'a Bsdf) 
         return None;
     }
     let diameter = (back.p - si.p).length();
-    (diameter > 0.0).then(|| SphereHit { center: si.p + inward * (0.5 * diameter), radius: 0.5 * diameter, bsdf: dielectric })
+    (diameter > 0.0).then(|| SphereHit {
+        center: si.p + inward * (0.5 * diameter),
+        radius: 0.5 * diameter,
+        bsdf: dielectric,
+    })
 }
 
 /// Splats the light of a light path (throughput `beta`, arriving along
@@ -256,7 +286,10 @@ pub fn connect<S: Spectrum>(
         return;
     }
     let rho: S = hit.bsdf.specular_reflectance.eval_spectrum::<S>(si.uv, wl);
-    let tau: S = hit.bsdf.specular_transmittance.eval_spectrum::<S>(si.uv, wl);
+    let tau: S = hit
+        .bsdf
+        .specular_transmittance
+        .eval_spectrum::<S>(si.uv, wl);
     match (&hit.bsdf.dispersion, S::hero_wavelength(wl)) {
         (Some(disp), Some(_)) => {
             // Each live wavelength on its own.
@@ -271,15 +304,40 @@ pub fn connect<S: Spectrum>(
                 if lambdas[..k].contains(&lambda) {
                     continue;
                 }
-                let mask = S::from_function(Rgb::WHITE, |l| if l == lambda { 1.0 } else { 0.0 }, wl);
+                let mask =
+                    S::from_function(Rgb::WHITE, |l| if l == lambda { 1.0 } else { 0.0 }, wl);
                 if mask.to_rgb(wl) == Rgb::BLACK {
                     continue; // a terminated secondary wavelength
                 }
                 let eta = disp.eta(lambda) as f64;
-                connect_one(scene, camera, hit, d, beta * mask, rho, tau, eta, max_chords as u32, wl, splat);
+                connect_one(
+                    scene,
+                    camera,
+                    hit,
+                    d,
+                    beta * mask,
+                    rho,
+                    tau,
+                    eta,
+                    max_chords as u32,
+                    wl,
+                    splat,
+                );
             }
         }
-        _ => connect_one(scene, camera, hit, d, beta, rho, tau, hit.bsdf.eta as f64, max_chords as u32, wl, splat),
+        _ => connect_one(
+            scene,
+            camera,
+            hit,
+            d,
+            beta,
+            rho,
+            tau,
+            hit.bsdf.eta as f64,
+            max_chords as u32,
+            wl,
+            splat,
+        ),
     }
 }
 
@@ -314,7 +372,9 @@ fn connect_one<S: Spectrum>(
         }
         Some((d.dot(v).clamp(-1.0, 1.0).acos(), perp / len, v))
     };
-    let Some((theta0, _, _)) = frame(c) else { return };
+    let Some((theta0, _, _)) = frame(c) else {
+        return;
+    };
     let mut tau_pow = tau * tau;
     for p in 0..=max_chords {
         if p >= 2 {
@@ -334,9 +394,13 @@ fn connect_one<S: Spectrum>(
             for _ in 0..4 {
                 let phi = phi_exit(p, n, x);
                 let e = c + a * (phi.cos() * d + phi.sin() * u);
-                let Some((theta, u_plus, _)) = frame(e) else { return };
+                let Some((theta, u_plus, _)) = frame(e) else {
+                    return;
+                };
                 u = u_plus * s;
-                let Some(nx) = solve_piece(p, n, lo, hi, s * theta + shift, Some(x)) else { return };
+                let Some(nx) = solve_piece(p, n, lo, hi, s * theta + shift, Some(x)) else {
+                    return;
+                };
                 let settled = (nx - x).abs() < 1e-10;
                 x = nx;
                 if settled {
@@ -368,7 +432,9 @@ fn connect_one<S: Spectrum>(
                 return;
             }
             let e32 = e.as_vec3();
-            let Some(cc) = camera.connect(e32, scene.film.width, scene.film.height) else { return };
+            let Some(cc) = camera.connect(e32, scene.film.width, scene.film.height) else {
+                return;
+            };
             let normal = ((e - c) / a).as_vec3();
             let o = offset_origin(e32, normal, cc.d);
             let to = camera.origin() - o;
@@ -376,7 +442,11 @@ fn connect_one<S: Spectrum>(
             if !(len > 0.0) {
                 return;
             }
-            let tr = scene.transmittance(&Ray { o, d: to / len, tmax: len * (1.0 - SHADOW_EPSILON) });
+            let tr = scene.transmittance(&Ray {
+                o,
+                d: to / len,
+                tmax: len * (1.0 - SHADOW_EPSILON),
+            });
             if !(tr > 0.0) {
                 return;
             }
@@ -452,7 +522,11 @@ mod tests {
                 let t = row[p as usize];
                 // 2 %: the traced side is a 400 000-ray quadrature in x.
                 let tol = 0.02 * t.max(closed) + 2e-5;
-                assert!((closed - t).abs() <= tol, "p={p} bin {b} (Θ {}°): closed {closed:.6} traced {t:.6}", 2 * b);
+                assert!(
+                    (closed - t).abs() <= tol,
+                    "p={p} bin {b} (Θ {}°): closed {closed:.6} traced {t:.6}",
+                    2 * b
+                );
             }
         }
     }
@@ -468,10 +542,14 @@ mod tests {
         assert!((bow.abs() - 42.3).abs() < 0.3, "primary at {bow}°");
         // Each side of the bow: two roots inside, none outside.
         let mut c = 0;
-        roots(2, n, (180.0f64 - 40.0).to_radians(), &mut |_, _, _, _| c += 1);
+        roots(2, n, (180.0f64 - 40.0).to_radians(), &mut |_, _, _, _| {
+            c += 1
+        });
         assert_eq!(c, 2);
         let mut c = 0;
-        roots(2, n, (180.0f64 - 44.0).to_radians(), &mut |_, _, _, _| c += 1);
+        roots(2, n, (180.0f64 - 44.0).to_radians(), &mut |_, _, _, _| {
+            c += 1
+        });
         assert_eq!(c, 0);
     }
 }
