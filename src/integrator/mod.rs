@@ -8,6 +8,7 @@ pub mod bdpt;
 pub mod direct;
 pub mod path;
 pub mod ptracer;
+pub mod sphere_connection;
 pub mod sppm;
 pub mod vcm;
 

@@ -23,6 +23,7 @@
 //! | `hide_emitters` | boolean | false | do not show emitters seen directly |
 //! | `samples_per_pass` | integer | — | accepted for Mitsuba compatibility (scheduling only) |
 //! | `light_sampling` | string | `power` | emitter a light path starts on: `power` (by flux) or `uniform` (as Mitsuba) |
+//! | `sphere_connection` | boolean | false | Snell only: also join light paths to the camera through smooth dielectric spheres, in closed form ([`super::sphere_connection`]) |
 //!
 //! Emitters: all but the projector's own `sample_ray` limits. Emitters at
 //! infinity (`constant`, `envmap`, `directional`) start their paths on the
@@ -52,6 +53,9 @@ pub struct ParticleTracer {
     pub max_depth: u32,
     pub rr_depth: u32,
     pub hide_emitters: bool,
+    /// Join light paths to the camera through smooth dielectric spheres
+    /// ([`super::sphere_connection`]).
+    pub sphere_connection: bool,
 }
 
 impl ParticleTracer {
@@ -102,6 +106,14 @@ impl ParticleTracer {
                 break;
             }
             let bsdf = scene.bsdf(&si);
+            // Through a smooth dielectric sphere to the camera, every
+            // wavelength on its own (before the secondaries are dropped).
+            if self.sphere_connection {
+                if let Some(hit) = super::sphere_connection::sphere_at(scene, &si, bsdf) {
+                    let chords = i64::from(self.max_depth) - i64::from(segments) - 1;
+                    super::sphere_connection::connect::<S>(scene, camera, &hit, &si, ray.d, beta, chords, wl, splat);
+                }
+            }
             // Past a dispersive interface the direction (and a rough one's
             // connection to the camera) holds for the hero wavelength only.
             if bsdf.disperses() {

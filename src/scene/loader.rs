@@ -1204,6 +1204,7 @@ impl Loader {
                     max_depth: self.depth_limit(&props, "max_depth", max_depth),
                     rr_depth: self.depth_limit(&props, "rr_depth", rr_depth),
                     hide_emitters: props.bool("hide_emitters", false)?,
+                    sphere_connection: props.bool("sphere_connection", false)?,
                 })
             }
             "bdpt" => {
