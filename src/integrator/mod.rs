@@ -10,6 +10,7 @@ pub mod path;
 pub mod ptracer;
 pub mod sppm;
 pub mod vcm;
+pub mod wavefront;
 
 pub use aov::{Aov, AovKind, Moment};
 pub use bdpt::{Bdpt, BdptScratch};
