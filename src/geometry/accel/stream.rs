@@ -26,6 +26,7 @@ use super::{Accel, DIRECT, Hit, LEAF, Lanes, PACKET, PrimGeom, RayData, STACK, W
 use super::Avx;
 use super::{Portable, SimdLevel};
 use crate::geometry::Ray;
+use glam::Vec3A;
 
 /// Rays per occlusion packet: one per lane of the 8-wide node test.
 const RAYS: usize = 8;
@@ -111,18 +112,28 @@ impl Accel {
     #[inline(always)]
     fn occluded_packet<V: Lanes>(&self, rays: &[Ray]) -> u32 {
         let n = rays.len();
-        // Per ray, the single-ray constants (for the leaves); per lane the
-        // same numbers, for the node test.
-        let data: [Option<RayData<V>>; RAYS] = std::array::from_fn(|k| rays.get(k).map(RayData::<V>::new));
-        let lane = |f: &dyn Fn(&RayData<V>) -> f32| V::from_array(std::array::from_fn(|k| data[k].as_ref().map_or(0.0, f)));
-        let sel = |v: [V; 3], a: usize| -> f32 { v[a].to_array()[0] };
-        let inv: [V; 3] = std::array::from_fn(|a| lane(&|r| sel(r.inv, a)));
-        let oinv_n: [V; 3] = std::array::from_fn(|a| lane(&|r| sel(r.oinv_n, a)));
-        let oinv_f: [V; 3] = std::array::from_fn(|a| lane(&|r| sel(r.oinv_f, a)));
-        let tmax = V::from_array(std::array::from_fn(|k| rays.get(k).map_or(-1.0, |r| r.tmax)));
+        // Per lane, the single-ray slab constants of its ray (plain loops:
+        // closures and `array::from_fn` would be compiled outside the
+        // caller's target features and not inlined).
+        let (mut inv, mut oinv_n, mut oinv_f) = ([[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3]);
+        let mut tmax = [-1.0f32; RAYS];
+        for k in 0..n {
+            let (i, on, of) = slab_constants(&rays[k]);
+            for a in 0..3 {
+                inv[a][k] = i[a];
+                oinv_n[a][k] = on[a];
+                oinv_f[a][k] = of[a];
+            }
+            tmax[k] = rays[k].tmax;
+        }
+        let inv = [V::from_array(inv[0]), V::from_array(inv[1]), V::from_array(inv[2])];
+        let oinv_n = [V::from_array(oinv_n[0]), V::from_array(oinv_n[1]), V::from_array(oinv_n[2])];
+        let oinv_f = [V::from_array(oinv_f[0]), V::from_array(oinv_f[1]), V::from_array(oinv_f[2])];
+        let tmax = V::from_array(tmax);
         // All-ones lanes where the ray runs towards −axis: its near plane
         // is the box's maximum there.
-        let neg: [V; 3] = std::array::from_fn(|a| inv[a].lt(V::splat(0.0)));
+        let zero0 = V::splat(0.0);
+        let neg = [inv[0].lt(zero0), inv[1].lt(zero0), inv[2].lt(zero0)];
         let zero = V::splat(0.0);
         let far = V::splat(super::FAR);
         let mut blocked = 0u32;
@@ -173,10 +184,8 @@ impl Accel {
                 while m != 0 {
                     let k = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    if let Some(r) = &data[k] {
-                        if self.leaf_blocks(cur, r, rays[k].tmax) {
-                            blocked |= 1 << k;
-                        }
+                    if blocked & (1 << k) == 0 && self.leaf_blocks(cur, &RayData::<V>::new(&rays[k]), rays[k].tmax) {
+                        blocked |= 1 << k;
                     }
                 }
                 if blocked == all {
@@ -230,6 +239,20 @@ impl Accel {
     }
 }
 
+/// The inverse direction and the two origin offsets of the slab test, as
+/// `RayData::new` computes them (the same operations, so the same bits).
+#[inline(always)]
+fn slab_constants(ray: &Ray) -> (Vec3A, Vec3A, Vec3A) {
+    let o = Vec3A::from(ray.o);
+    let d = Vec3A::from(ray.d);
+    let tiny = Vec3A::splat(1e-20);
+    let d_safe = Vec3A::select(d.abs().cmplt(tiny), tiny.copysign(d), d);
+    let inv = Vec3A::ONE / d_safe;
+    let oinv = o * inv;
+    let err = oinv.abs() * super::REL;
+    (inv, oinv + err, oinv - err)
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::{Accel, SimdLevel};
@@ -252,10 +275,10 @@ mod tests {
         let mut rng = Pcg32::new(seed, 3);
         let mut r3 = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
         let (mut positions, mut triangles) = (vec![], vec![]);
-        for i in 0..400u32 {
+        for i in 0..1500u32 {
             let c = r3() * 4.0 - 2.0;
             for _ in 0..3 {
-                positions.push(c + (r3() - 0.5) * 0.5);
+                positions.push(c + (r3() - 0.5) * 0.7);
             }
             triangles.push([3 * i, 3 * i + 1, 3 * i + 2]);
         }
@@ -268,7 +291,7 @@ mod tests {
         let mut rays = vec![];
         let target = Vec3::new(0.1, 2.5, 0.2);
         for i in 0..3000 {
-            let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 6.0 - 3.0;
+            let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 5.0 - 2.5;
             let ray = match i % 4 {
                 0 => {
                     let v = target - o;
