@@ -43,7 +43,7 @@ pub struct RenderOptions {
     pub passes: u32,
     /// Render `path` with the batched (wavefront) path tracer where it
     /// applies ([`crate::integrator::wavefront`]); `None`: as the
-    /// environment variable `SNELL_WAVEFRONT` says (default off).
+    /// environment variable `SNELL_WAVEFRONT` says, else in RGB only.
     pub wavefront: Option<bool>,
 }
 
@@ -538,7 +538,7 @@ fn render_camera<S: Spectrum>(
     let shared = std::sync::Mutex::new(state);
     // The batched path tracer, where selected and where it applies.
     let wavefront = match &scene.integrator {
-        Integrator::Path(pt) if !S::POLARIZED && n_extra == 0 && options.wavefront.unwrap_or_else(crate::integrator::wavefront::enabled_by_env) => Some(pt),
+        Integrator::Path(pt) if !S::POLARIZED && n_extra == 0 && options.wavefront.unwrap_or_else(crate::integrator::wavefront::default_for::<S>) => Some(pt),
         _ => None,
     };
     let setup = crate::integrator::wavefront::CameraSetup { crop_offset: [ox, oy], inv_size };

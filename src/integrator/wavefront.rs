@@ -2,19 +2,20 @@
 //! block of camera samples advance together, stage by stage, instead of one
 //! path from camera to end at a time.
 //!
-//! Experimental. Selected by the environment variable `SNELL_WAVEFRONT=1`
-//! (or, from code, [`crate::render::RenderOptions::wavefront`]); it applies
-//! to the `path` integrator in the unpolarized modes (`rgb`, `spectral`) on
-//! films without alpha or AOV channels. Everything else — and `path` when it
-//! is not selected — takes the scalar path tracer ([`super::path`]).
+//! It renders the `path` integrator in the unpolarized modes (`rgb`,
+//! `spectral`) on films without alpha or AOV channels: by default in the
+//! `rgb` mode (where it measured faster, see below), on request in
+//! `spectral`. Everything else — and `path` when it is switched off — takes
+//! the scalar path tracer ([`super::path`]); both give the same image.
 //!
 //! | setting | values | default | meaning |
 //! |---|---|---|---|
-//! | `SNELL_WAVEFRONT` | `1`/`on`, `0`/`off` | off | render `path` in batches |
-//! | `RenderOptions::wavefront` | `Option<bool>` | `None` (the variable) | the same, per render |
+//! | `SNELL_WAVEFRONT` | `1`/`on`, `0`/`off` | unset: on in `rgb`, off in `spectral` | render `path` in batches |
+//! | `RenderOptions::wavefront` | `Option<bool>` | `None` (as the variable) | the same, per render |
 //!
 //! ```text
-//! SNELL_WAVEFRONT=1 snell render scenes/cornell-box.xml -o out.exr
+//! SNELL_WAVEFRONT=0 snell render scenes/cornell-box.xml -o scalar.exr
+//! SNELL_WAVEFRONT=1 snell render scenes/cornell-box.xml --mode spectral -o batched.exr
 //! ```
 //!
 //! # Design
@@ -79,20 +80,28 @@ use std::sync::OnceLock;
 /// Paths per batch.
 pub const BATCH: usize = 256;
 
-/// Whether `SNELL_WAVEFRONT` asks for the wavefront path tracer (read once).
-pub fn enabled_by_env() -> bool {
-    static ON: OnceLock<bool> = OnceLock::new();
+/// What `SNELL_WAVEFRONT` asks for (read once): `Some(on)`, or `None` when
+/// it is not set.
+pub fn env_choice() -> Option<bool> {
+    static ON: OnceLock<Option<bool>> = OnceLock::new();
     *ON.get_or_init(|| match std::env::var("SNELL_WAVEFRONT") {
         Ok(v) => match v.trim() {
-            "1" | "on" | "true" | "yes" => true,
-            "" | "0" | "off" | "false" | "no" => false,
+            "1" | "on" | "true" | "yes" => Some(true),
+            "0" | "off" | "false" | "no" => Some(false),
             other => {
-                eprintln!("warning: SNELL_WAVEFRONT={other:?} is not one of 1, on, 0, off; the wavefront path tracer stays off");
-                false
+                eprintln!("warning: SNELL_WAVEFRONT={other:?} is not one of 1, on, 0, off; ignored");
+                None
             }
         },
-        Err(_) => false,
+        Err(_) => None,
     })
+}
+
+/// Whether `path` renders with the wavefront tracer in the mode of the
+/// spectrum type `S` when the render options do not say: as
+/// `SNELL_WAVEFRONT` says, else in RGB (the mode without wavelengths) only.
+pub fn default_for<S: Spectrum>() -> bool {
+    env_choice().unwrap_or_else(|| !S::POLARIZED && S::hero_wavelength(&S::sample_wavelengths(0.5)).is_none())
 }
 
 /// Where a camera sample's pixel lies: the crop window's offset in the full
