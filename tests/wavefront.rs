@@ -87,3 +87,12 @@ fn wavefront_images_are_exact_across_threads_and_passes() {
         assert!(bits(&render::<Rgb>(&scene, true, threads, passes)) == want, "{threads} threads, {passes} passes");
     }
 }
+
+#[test]
+fn wavefront_matches_path_at_every_simd_level() {
+    let mut scene = load("scenes/caustic-cornell-box.xml", &[], &[("res", "32"), ("spp", "4")]);
+    for level in snell::geometry::accel::SimdLevel::ALL.into_iter().filter(|l| l.supported()) {
+        scene.accel.set_simd_level(level);
+        assert_same::<Rgb>(&format!("{level:?}"), &scene);
+    }
+}

@@ -12,6 +12,7 @@
 //! |---|---|---|---|
 //! | `SNELL_WAVEFRONT` | `1`/`on`, `0`/`off` | unset: on in `rgb`, off in `spectral` | render `path` in batches |
 //! | `RenderOptions::wavefront` | `Option<bool>` | `None` (as the variable) | the same, per render |
+//! | `SNELL_WAVEFRONT_BATCH` | 1–65536 | 256 | paths per batch (for measurements; the image does not depend on it) |
 //!
 //! ```text
 //! SNELL_WAVEFRONT=0 snell render scenes/cornell-box.xml -o scalar.exr
@@ -77,8 +78,24 @@ use glam::{Vec2, Vec3};
 use std::ops::Range;
 use std::sync::OnceLock;
 
-/// Paths per batch.
+/// Paths per batch (unless `SNELL_WAVEFRONT_BATCH` says otherwise).
 pub const BATCH: usize = 256;
+
+/// Paths per batch: [`BATCH`], or `SNELL_WAVEFRONT_BATCH` (1 to 65536; for
+/// measurements: the image does not depend on it). Read once.
+pub fn batch_size() -> usize {
+    static SIZE: OnceLock<usize> = OnceLock::new();
+    *SIZE.get_or_init(|| match std::env::var("SNELL_WAVEFRONT_BATCH") {
+        Ok(v) => match v.trim().parse::<usize>() {
+            Ok(n) if (1..=65536).contains(&n) => n,
+            _ => {
+                eprintln!("warning: SNELL_WAVEFRONT_BATCH={v:?} is not a number from 1 to 65536; using {BATCH}");
+                BATCH
+            }
+        },
+        Err(_) => BATCH,
+    })
+}
 
 /// What `SNELL_WAVEFRONT` asks for (read once): `Some(on)`, or `None` when
 /// it is not set.
@@ -191,10 +208,11 @@ pub fn render_row<S: Spectrum>(
 ) -> u64 {
     let mut bad = 0;
     let mut jobs = xs.flat_map(|x| samples.clone().map(move |i| (x, i))).peekable();
-    let mut batch = Vec::with_capacity(BATCH);
+    let size = batch_size();
+    let mut batch = Vec::with_capacity(size);
     while jobs.peek().is_some() {
         batch.clear();
-        batch.extend(jobs.by_ref().take(BATCH));
+        batch.extend(jobs.by_ref().take(size));
         bad += render_batch::<S>(scene, pt, y, &batch, cam, q, sink);
     }
     bad
@@ -236,8 +254,10 @@ fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u3
     q.prev_delta.resize(n, true);
     q.ctx.clear();
     q.ctx.resize(n, BsdfContext::RADIANCE);
-    q.si.clear();
-    q.si.resize(n, SurfaceInteraction::EMPTY);
+    // Written by the trace before it is read: only grown, never cleared.
+    if q.si.len() < n {
+        q.si.resize(n, SurfaceInteraction::EMPTY);
+    }
     q.hit.clear();
     q.hit.resize(n, false);
     q.live.clear();
