@@ -41,11 +41,15 @@ pub struct RenderOptions {
     /// Render in this many passes of growing sample counts (0 or 1: one
     /// pass), calling the `on_pass` callback of [`render_passes`] after each.
     pub passes: u32,
+    /// Render `path` with the batched (wavefront) path tracer where it
+    /// applies ([`crate::integrator::wavefront`]); `None`: as the
+    /// environment variable `SNELL_WAVEFRONT` says, else in RGB only.
+    pub wavefront: Option<bool>,
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { threads: 0, progress: false, stop: None, passes: 1 }
+        RenderOptions { threads: 0, progress: false, stop: None, passes: 1, wavefront: None }
     }
 }
 
@@ -532,18 +536,30 @@ fn render_camera<S: Spectrum>(
     let inv_size = Vec2::new(1.0 / scene.film.width as f32, 1.0 / scene.film.height as f32);
     let offset = Vec2::new(ox as f32, oy as f32);
     let shared = std::sync::Mutex::new(state);
+    // The batched path tracer, where selected and where it applies.
+    let wavefront = match &scene.integrator {
+        Integrator::Path(pt) if !S::POLARIZED && n_extra == 0 && options.wavefront.unwrap_or_else(crate::integrator::wavefront::default_for::<S>) => Some(pt),
+        _ => None,
+    };
+    let setup = crate::integrator::wavefront::CameraSetup { crop_offset: [ox, oy], inv_size };
 
     pool.install(|| {
         tiles.par_iter().for_each(|&(tx, ty, tw, th)| {
             let mut sink = Sink::new(&layout, tx as i32 - border, ty as i32 - border, (tw as i32 + 2 * border) as usize, (th as i32 + 2 * border) as usize);
             let mut extra = vec![0.0f32; n_extra];
             let mut bad = 0u64;
+            let mut queues = wavefront.map(|_| crate::integrator::wavefront::Queues::<S>::default());
             for y in ty..ty + th {
                 // A tile row is the unit of work that a stop request lets finish.
                 if options.stopped() {
                     break;
                 }
                 taken.fetch_add(tw as u64 * samples.len() as u64, Ordering::Relaxed);
+                if let (Some(pt), Some(q)) = (wavefront, queues.as_mut()) {
+                    bad += crate::integrator::wavefront::render_row::<S>(scene, pt, y, tx..tx + tw, samples.clone(), &setup, q, &mut sink);
+                    bar.inc(tw as u64 * samples.len() as u64);
+                    continue;
+                }
                 for x in tx..tx + tw {
                     // Seeded by the pixel's place in the full film: a crop
                     // renders the same samples as the full render there.

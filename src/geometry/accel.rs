@@ -32,6 +32,7 @@
 
 mod build;
 mod simd;
+mod stream;
 
 use super::cylinder::Cylinder;
 use super::disk::Disk;

@@ -11,6 +11,7 @@ pub mod ptracer;
 pub mod sphere_connection;
 pub mod sppm;
 pub mod vcm;
+pub mod wavefront;
 
 pub use aov::{Aov, AovKind, Moment};
 pub use bdpt::{Bdpt, BdptScratch};

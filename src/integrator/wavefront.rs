@@ -1,0 +1,489 @@
+//! Wavefront (batched) execution of the `path` integrator: the paths of a
+//! block of camera samples advance together, stage by stage, instead of one
+//! path from camera to end at a time.
+//!
+//! It renders the `path` integrator in the unpolarized modes (`rgb`,
+//! `spectral`) on films without alpha or AOV channels: by default in the
+//! `rgb` mode (where it measured faster, see below), on request in
+//! `spectral`. Everything else — and `path` when it is switched off — takes
+//! the scalar path tracer ([`super::path`]); both give the same image.
+//!
+//! | setting | values | default | meaning |
+//! |---|---|---|---|
+//! | `SNELL_WAVEFRONT` | `1`/`on`, `0`/`off` | unset: on in `rgb`, off in `spectral` | render `path` in batches |
+//! | `RenderOptions::wavefront` | `Option<bool>` | `None` (as the variable) | the same, per render |
+//! | `SNELL_WAVEFRONT_BATCH` | 1–65536 | 256 | paths per batch (for measurements; the image does not depend on it) |
+//!
+//! ```text
+//! SNELL_WAVEFRONT=0 snell render scenes/cornell-box.xml -o scalar.exr
+//! SNELL_WAVEFRONT=1 snell render scenes/cornell-box.xml --mode spectral -o batched.exr
+//! ```
+//!
+//! # Design
+//!
+//! A batch is [`BATCH`] (pixel, sample index) pairs of one tile row, in the
+//! order the scalar loop takes them (pixels left to right, sample indices
+//! within a pixel), so the camera rays of a batch are a few pixels' worth of
+//! nearly parallel rays. Its paths live in SoA queues (rays, throughput,
+//! radiance, η, the previous vertex's point, normal, pdf and delta flag for
+//! MIS, the BSDF context, the sampler and wavelengths of each path) and the
+//! list of live paths is compacted after every stage that ends paths. All
+//! paths of a batch have the same depth (they start together and each
+//! surviving path takes one bounce per round), so depth is one counter.
+//! One round:
+//!
+//! 1. extension rays of all live paths traced as one stream
+//!    ([`crate::geometry::accel::Accel::intersect_stream`]); scenes with
+//!    pass-through shapes, and camera rays under `hide_emitters`, take the
+//!    scalar `Scene::intersect_path_into` per path (those draw random
+//!    numbers while tracing);
+//! 2. emission met (MIS against emitter sampling) or the environment, and
+//!    the end of paths at `max_depth`;
+//! 3. next-event estimation in three passes: emitter samples and their
+//!    shadow rays for all paths at a smooth BSDF, the shadow rays traced as
+//!    one stream in packets of 8
+//!    ([`crate::geometry::accel::Accel::occluded_stream`]; pass-through
+//!    scenes: `Scene::transmittance` per ray), then BSDF values, MIS
+//!    weights and contributions;
+//! 4. BSDF sampling with the paths grouped by BSDF (a counting sort on the
+//!    shape's BSDF index), so that each BSDF's code and data stay hot while
+//!    its paths are sampled; Russian roulette as `path`.
+//!
+//! Each path owns its sampler ([`Sampler::start`] of its pixel and index)
+//! and draws from it in the scalar path tracer's order (wavelength, pixel
+//! position, camera, then per bounce: pass-through choices, the emitter
+//! sample, the BSDF sample, Russian roulette), and each stage evaluates the
+//! same expressions in the same order, so the image is bit-identical to the
+//! scalar `path` (tests/wavefront.rs checks it). Samples go into the tile's
+//! [`Sink`] (exact fixed-point sums), so the image stays the same for any
+//! thread count and pass split.
+//!
+//! Why batches of a tile row and not whole tiles: a few hundred paths keep
+//! the queues (≈ 0.4 KB per path, most of it the surface interaction and
+//! the sampler) in the L2 cache, and a row is the unit of work a stop
+//! request lets finish.
+
+use super::path::PathTracer;
+use crate::bsdf::{BsdfContext, Lobe};
+use crate::emitter::{EmitterSample, ShadingPoint};
+use crate::film::Sink;
+use crate::geometry::accel::Hit;
+use crate::geometry::ray::offset_origin;
+use crate::geometry::{Ray, SurfaceInteraction};
+use crate::math::{SHADOW_EPSILON, mis_power};
+use crate::sampler::Sampler;
+use crate::scene::Scene;
+use crate::spectrum::{Rgb, Spectrum};
+use glam::{Vec2, Vec3};
+use std::ops::Range;
+use std::sync::OnceLock;
+
+/// Paths per batch (unless `SNELL_WAVEFRONT_BATCH` says otherwise).
+pub const BATCH: usize = 256;
+
+/// Paths per batch: [`BATCH`], or `SNELL_WAVEFRONT_BATCH` (1 to 65536; for
+/// measurements: the image does not depend on it). Read once.
+pub fn batch_size() -> usize {
+    static SIZE: OnceLock<usize> = OnceLock::new();
+    *SIZE.get_or_init(|| match std::env::var("SNELL_WAVEFRONT_BATCH") {
+        Ok(v) => match v.trim().parse::<usize>() {
+            Ok(n) if (1..=65536).contains(&n) => n,
+            _ => {
+                eprintln!("warning: SNELL_WAVEFRONT_BATCH={v:?} is not a number from 1 to 65536; using {BATCH}");
+                BATCH
+            }
+        },
+        Err(_) => BATCH,
+    })
+}
+
+/// What `SNELL_WAVEFRONT` asks for (read once): `Some(on)`, or `None` when
+/// it is not set.
+pub fn env_choice() -> Option<bool> {
+    static ON: OnceLock<Option<bool>> = OnceLock::new();
+    *ON.get_or_init(|| match std::env::var("SNELL_WAVEFRONT") {
+        Ok(v) => match v.trim() {
+            "1" | "on" | "true" | "yes" => Some(true),
+            "0" | "off" | "false" | "no" => Some(false),
+            other => {
+                eprintln!("warning: SNELL_WAVEFRONT={other:?} is not one of 1, on, 0, off; ignored");
+                None
+            }
+        },
+        Err(_) => None,
+    })
+}
+
+/// Whether `path` renders with the wavefront tracer in the mode of the
+/// spectrum type `S` when the render options do not say: as
+/// `SNELL_WAVEFRONT` says, else in RGB (the mode without wavelengths) only.
+pub fn default_for<S: Spectrum>() -> bool {
+    env_choice().unwrap_or_else(|| !S::POLARIZED && S::hero_wavelength(&S::sample_wavelengths(0.5)).is_none())
+}
+
+/// Where a camera sample's pixel lies: the crop window's offset in the full
+/// film and the film's inverse size (as the scalar loop has them).
+#[derive(Clone, Copy, Debug)]
+pub struct CameraSetup {
+    pub crop_offset: [u32; 2],
+    pub inv_size: Vec2,
+}
+
+/// The SoA queues of one batch, kept by a worker and reused.
+pub struct Queues<S: Spectrum> {
+    sampler: Vec<Sampler>,
+    wl: Vec<S::Wavelengths>,
+    pos: Vec<Vec2>,
+    ray: Vec<Ray>,
+    throughput: Vec<S>,
+    result: Vec<S>,
+    eta: Vec<f32>,
+    prev_p: Vec<Vec3>,
+    prev_n: Vec<Vec3>,
+    prev_pdf: Vec<f32>,
+    prev_delta: Vec<bool>,
+    ctx: Vec<BsdfContext>,
+    si: Vec<SurfaceInteraction>,
+    hit: Vec<bool>,
+    /// Indices of the live paths, and the next list being built.
+    live: Vec<u32>,
+    next: Vec<u32>,
+    /// Stream buffers: rays and hits of the live paths in `live` order.
+    rays: Vec<Ray>,
+    hits: Vec<Option<Hit>>,
+    /// Shadow queue: path, emitter sample, ray, answer.
+    shadow_path: Vec<u32>,
+    shadow_sample: Vec<EmitterSample<S>>,
+    shadow_ray: Vec<Ray>,
+    shadow_blocked: Vec<bool>,
+    /// Counting sort by BSDF.
+    bsdf_of: Vec<u32>,
+    counts: Vec<u32>,
+}
+
+impl<S: Spectrum> Default for Queues<S> {
+    fn default() -> Self {
+        Queues {
+            sampler: Vec::with_capacity(BATCH),
+            wl: Vec::with_capacity(BATCH),
+            pos: Vec::with_capacity(BATCH),
+            ray: Vec::with_capacity(BATCH),
+            throughput: Vec::with_capacity(BATCH),
+            result: Vec::with_capacity(BATCH),
+            eta: Vec::with_capacity(BATCH),
+            prev_p: Vec::with_capacity(BATCH),
+            prev_n: Vec::with_capacity(BATCH),
+            prev_pdf: Vec::with_capacity(BATCH),
+            prev_delta: Vec::with_capacity(BATCH),
+            ctx: Vec::with_capacity(BATCH),
+            si: Vec::with_capacity(BATCH),
+            hit: Vec::with_capacity(BATCH),
+            live: Vec::with_capacity(BATCH),
+            next: Vec::with_capacity(BATCH),
+            rays: Vec::with_capacity(BATCH),
+            hits: Vec::with_capacity(BATCH),
+            shadow_path: Vec::with_capacity(BATCH),
+            shadow_sample: Vec::with_capacity(BATCH),
+            shadow_ray: Vec::with_capacity(BATCH),
+            shadow_blocked: Vec::with_capacity(BATCH),
+            bsdf_of: Vec::with_capacity(BATCH),
+            counts: vec![],
+        }
+    }
+}
+
+/// Renders the samples `samples` of the pixels `xs` of row `y` (crop-window
+/// coordinates) with `pt` in batches, adding them to `sink`. Returns the
+/// number of invalid (NaN or infinite) estimates, replaced by black.
+#[allow(clippy::too_many_arguments)]
+pub fn render_row<S: Spectrum>(
+    scene: &Scene,
+    pt: &PathTracer,
+    y: u32,
+    xs: Range<u32>,
+    samples: Range<u32>,
+    cam: &CameraSetup,
+    q: &mut Queues<S>,
+    sink: &mut Sink,
+) -> u64 {
+    let mut bad = 0;
+    let mut jobs = xs.flat_map(|x| samples.clone().map(move |i| (x, i))).peekable();
+    let size = batch_size();
+    let mut batch = Vec::with_capacity(size);
+    while jobs.peek().is_some() {
+        batch.clear();
+        batch.extend(jobs.by_ref().take(size));
+        bad += render_batch::<S>(scene, pt, y, &batch, cam, q, sink);
+    }
+    bad
+}
+
+/// One batch: camera rays, rounds of bounces until no path is left, then
+/// the samples into the sink.
+fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u32, u32)], cam: &CameraSetup, q: &mut Queues<S>, sink: &mut Sink) -> u64 {
+    q.sampler.clear();
+    q.wl.clear();
+    q.pos.clear();
+    q.ray.clear();
+    let [ox, oy] = cam.crop_offset;
+    let offset = Vec2::new(ox as f32, oy as f32);
+    for &(x, index) in jobs {
+        let mut sampler = Sampler::start(&scene.sampler, x + ox, y + oy, index);
+        let wl = S::sample_wavelengths(sampler.next_1d());
+        let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+        let ray = scene.camera.sample_ray((pos + offset) * cam.inv_size, &mut sampler);
+        q.sampler.push(sampler);
+        q.wl.push(wl);
+        q.pos.push(pos);
+        q.ray.push(ray);
+    }
+    let n = jobs.len();
+    q.throughput.clear();
+    q.throughput.resize(n, S::splat(1.0));
+    q.result.clear();
+    q.result.resize(n, S::zero());
+    q.eta.clear();
+    q.eta.resize(n, 1.0);
+    q.prev_p.clear();
+    q.prev_p.extend(q.ray.iter().map(|r| r.o));
+    q.prev_n.clear();
+    q.prev_n.resize(n, Vec3::ZERO);
+    q.prev_pdf.clear();
+    q.prev_pdf.resize(n, 0.0);
+    q.prev_delta.clear();
+    q.prev_delta.resize(n, true);
+    q.ctx.clear();
+    q.ctx.resize(n, BsdfContext::RADIANCE);
+    // Written by the trace before it is read: only grown, never cleared.
+    if q.si.len() < n {
+        q.si.resize(n, SurfaceInteraction::EMPTY);
+    }
+    q.hit.clear();
+    q.hit.resize(n, false);
+    q.live.clear();
+    q.live.extend(0..n as u32);
+
+    let mut depth = 0u32;
+    while !q.live.is_empty() {
+        trace_extension(scene, pt, depth, q);
+        shade_hits(scene, pt, depth, q);
+        if q.live.is_empty() {
+            break;
+        }
+        next_event(scene, q);
+        sample_bsdfs(scene, pt, depth, q);
+        depth += 1;
+    }
+
+    let mut bad = 0;
+    for i in 0..n {
+        let mut rgb = q.result[i].to_rgb(&q.wl[i]);
+        if !rgb.is_finite() {
+            bad += 1;
+            rgb = Rgb::BLACK;
+        }
+        sink.add_sample(&scene.film.filter, q.pos[i], rgb, None, &[]);
+    }
+    bad
+}
+
+/// Stage 1: the surfaces the live paths' rays meet, into `q.si` / `q.hit`.
+fn trace_extension<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Queues<S>) {
+    let hide = pt.hide_emitters && depth == 0;
+    if scene.pass_through || hide {
+        for &i in &q.live {
+            let i = i as usize;
+            q.hit[i] = scene.intersect_path_into(&q.ray[i], hide, &mut q.sampler[i], &mut q.si[i]);
+        }
+        return;
+    }
+    q.rays.clear();
+    q.rays.extend(q.live.iter().map(|&i| q.ray[i as usize]));
+    q.hits.clear();
+    q.hits.resize(q.rays.len(), None);
+    scene.accel.intersect_stream(&q.rays, &mut q.hits);
+    for (k, &i) in q.live.iter().enumerate() {
+        let i = i as usize;
+        q.hit[i] = match &q.hits[k] {
+            Some(h) => {
+                scene.interaction_into(h, &q.ray[i], &mut q.si[i]);
+                true
+            }
+            None => false,
+        };
+    }
+}
+
+/// Stage 2: emission met along the rays (weighted by MIS against emitter
+/// sampling), the environment for rays that escaped; ends paths that
+/// escaped or reached `max_depth`.
+fn shade_hits<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Queues<S>) {
+    let visible = !(pt.hide_emitters && depth == 0);
+    let last = depth.saturating_add(1) >= pt.max_depth;
+    q.next.clear();
+    for &i in &q.live {
+        let i = i as usize;
+        let prev = ShadingPoint { p: q.prev_p[i], n: q.prev_n[i] };
+        if !q.hit[i] {
+            if visible {
+                if let Some(env) = scene.environment_radiance::<S>(q.ray[i].d, &q.wl[i]) {
+                    q.result[i] += q.throughput[i] * env * super::path::escaped_weight(scene, &prev, q.prev_pdf[i], q.prev_delta[i], q.ray[i].d);
+                }
+            }
+            continue;
+        }
+        if visible {
+            let si = &q.si[i];
+            if let Some(le) = scene.emitted::<S>(si, &q.wl[i]) {
+                q.result[i] += q.throughput[i] * le * super::path::hit_weight(scene, &prev, q.prev_pdf[i], q.prev_delta[i], si);
+            }
+        }
+        if !last {
+            q.next.push(i as u32);
+        }
+    }
+    std::mem::swap(&mut q.live, &mut q.next);
+}
+
+/// An emitter sample from `si` and the shadow ray that tests it, as
+/// `Scene::sample_emitter` takes them (selection included), before the
+/// shadow ray is traced. `None` if the emitter gives nothing.
+#[inline(always)]
+fn emitter_sample_ray<S: Spectrum>(scene: &Scene, si: &SurfaceInteraction, u: Vec2, wl: &S::Wavelengths) -> Option<(EmitterSample<S>, Ray)> {
+    let (index, pmf, ux) = scene.select_emitter(u.x, &ShadingPoint::from(si))?;
+    let mut sample = scene.emitters[index].sample_direct::<S>(scene, si.p, Vec2::new(ux, u.y), wl)?;
+    sample.weight = sample.weight / pmf;
+    sample.pdf *= pmf;
+    let o = si.spawn_origin(sample.d);
+    let ray = match sample.p {
+        Some(target) => {
+            let target = if sample.n != Vec3::ZERO { offset_origin(target, sample.n, -sample.d) } else { target };
+            let v = target - o;
+            let dist = v.length();
+            if dist <= 0.0 {
+                return None;
+            }
+            Ray { o, d: v / dist, tmax: dist * (1.0 - SHADOW_EPSILON) }
+        }
+        None => Ray { o, d: sample.d, tmax: f32::INFINITY },
+    };
+    Some((sample, ray))
+}
+
+/// Stage 3: next-event estimation for every live path at a smooth BSDF:
+/// emitter samples and shadow rays, the shadow rays traced as a stream,
+/// then the contributions. Also cuts the wavelengths down to the hero
+/// wavelength at a dispersive BSDF, as `path` does before its emitter sample.
+fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
+    q.shadow_path.clear();
+    q.shadow_sample.clear();
+    q.shadow_ray.clear();
+    for &i in &q.live {
+        let i = i as usize;
+        let si = &q.si[i];
+        let bsdf = scene.bsdf(si);
+        if S::hero_wavelength(&q.wl[i]).is_some() && bsdf.disperses() {
+            S::terminate_secondary(&mut q.wl[i]);
+        }
+        if bsdf.lobes().intersects(Lobe::SMOOTH) {
+            let u = q.sampler[i].next_2d();
+            if let Some((es, ray)) = emitter_sample_ray::<S>(scene, si, u, &q.wl[i]) {
+                q.shadow_path.push(i as u32);
+                q.shadow_sample.push(es);
+                q.shadow_ray.push(ray);
+            }
+        }
+    }
+    if q.shadow_path.is_empty() {
+        return;
+    }
+    q.shadow_blocked.clear();
+    q.shadow_blocked.resize(q.shadow_ray.len(), false);
+    if !scene.pass_through {
+        scene.accel.occluded_stream(&q.shadow_ray, &mut q.shadow_blocked);
+    }
+    for k in 0..q.shadow_path.len() {
+        let i = q.shadow_path[k] as usize;
+        let mut es = q.shadow_sample[k];
+        if scene.pass_through {
+            let tr = scene.transmittance(&q.shadow_ray[k]);
+            if !(tr > 0.0) {
+                continue;
+            }
+            if tr < 1.0 {
+                es.weight = es.weight * tr;
+            }
+        } else if q.shadow_blocked[k] {
+            continue;
+        }
+        let si = &q.si[i];
+        let bsdf = scene.bsdf(si);
+        let wo = si.to_local(es.d);
+        let (f, pdf): (S, f32) = bsdf.eval_pdf(&BsdfContext::RADIANCE, si, si.wi, wo, &q.wl[i]);
+        if f.is_zero() {
+            continue;
+        }
+        let w = if es.delta { 1.0 } else { mis_power(es.pdf, pdf) };
+        q.result[i] += q.throughput[i] * f * es.weight * w;
+    }
+}
+
+/// Stage 4: BSDF sampling of the live paths grouped by BSDF, the next
+/// rays, and Russian roulette; the survivors become the live list.
+fn sample_bsdfs<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Queues<S>) {
+    // Counting sort of the live paths by their shape's BSDF index.
+    let kinds = scene.bsdfs.len();
+    q.counts.clear();
+    q.counts.resize(kinds + 1, 0);
+    q.bsdf_of.clear();
+    for &i in &q.live {
+        let b = (scene.shapes[q.si[i as usize].shape as usize].bsdf as usize).min(kinds);
+        q.bsdf_of.push(b as u32);
+        q.counts[b + 1] += 1;
+    }
+    for k in 1..q.counts.len() {
+        q.counts[k] += q.counts[k - 1];
+    }
+    q.next.clear();
+    q.next.resize(q.live.len(), 0);
+    for (k, &i) in q.live.iter().enumerate() {
+        let b = q.bsdf_of[k] as usize;
+        q.next[q.counts[b] as usize] = i;
+        q.counts[b] += 1;
+    }
+    std::mem::swap(&mut q.live, &mut q.next);
+
+    let rr = depth + 1 >= pt.rr_depth;
+    q.next.clear();
+    for &i in &q.live {
+        let i = i as usize;
+        let si = &q.si[i];
+        let bsdf = scene.bsdf(si);
+        let sampler = &mut q.sampler[i];
+        let Some(bs) = bsdf.sample_inline::<S>(&q.ctx[i], si, si.wi, sampler.next_1d(), sampler.next_2d(), &q.wl[i]) else { continue };
+        q.ctx[i] = q.ctx[i].following(bs.lobe);
+        let d = si.to_world(bs.wo);
+        q.throughput[i] *= bs.weight;
+        q.eta[i] *= bs.eta;
+        q.prev_p[i] = si.p;
+        q.prev_n[i] = si.frame.n;
+        q.prev_pdf[i] = bs.pdf;
+        q.prev_delta[i] = bs.lobe.intersects(Lobe::DELTA);
+        q.ray[i] = Ray::new(si.spawn_origin(d), d);
+
+        let t_max = q.throughput[i].max_component();
+        if rr {
+            let eta = q.eta[i];
+            let p = (t_max * eta * eta).min(0.95);
+            if !(sampler.next_1d() < p) {
+                continue;
+            }
+            q.throughput[i] *= 1.0 / p;
+        }
+        if !(t_max > 0.0) {
+            continue;
+        }
+        q.next.push(i as u32);
+    }
+    std::mem::swap(&mut q.live, &mut q.next);
+}
