@@ -98,7 +98,7 @@ pub(crate) fn owen_scramble(x: u32, seed: u32) -> u32 {
 
 pub(crate) struct Sobol {
     id: SampleId,
-    dim: u32,
+    pub(super) dim: u32,
 }
 
 impl Sobol {
