@@ -33,7 +33,10 @@ second run at 16², 1 spp, Mitsuba's around load_file. Prints the CPU's SIMD wid
 --efficiency measures error per second instead: for each scene it renders a
 high-spp reference (--ref-spp, Mitsuba llvm_ad_rgb independent if Mitsuba is
 there, else Snell's sobol), then renders --runs images per sampler (seeds
-1..runs) at --spp with Snell's independent, multijitter, sobol and zsobol and
+1..runs) at --spp with Snell's independent, multijitter, sobol and zsobol
+(--snell-samplers; each --snell-integrator KEY=VALUE,... is a variant with
+integer properties added to Snell's integrator, e.g. bsdf_samples=2, "" the
+scene's own) and
 Mitsuba's independent, multijitter and ldsampler, in the same run, and prints
   efficiency = 1 / (relMSE × render seconds),
 relMSE = mean over pixels and channels of (x − ref)² / (ref² + 0.01), averaged
@@ -450,21 +453,28 @@ def rel_mse(img, ref):
     return sum((a - r) ** 2 / (r * r + 1e-2) for a, r in zip(img, ref)) / len(ref)
 
 
-def scene_with_sampler(scene, sampler):
-    """A copy of `scene` (beside it, so relative paths hold) naming `sampler`."""
+def scene_with_sampler(scene, sampler, integrator_props=()):
+    """A copy of `scene` (beside it, so relative paths hold) naming `sampler`,
+    with integer properties `integrator_props` (KEY=VALUE) added to its integrator."""
     text = open(scene).read()
     new, n = re.subn(r'<sampler\s+type="[a-z]+"', f'<sampler type="{sampler}"', text, count=1)
     if n != 1:
         sys.exit(f"{scene}: no <sampler type=...> to replace")
+    if integrator_props:
+        props = "".join(f'<integer name="{k}" value="{v}"/>' for k, _, v in (kv.partition("=") for kv in integrator_props))
+        new, n = re.subn(r'(<integrator\s+type="[a-z_]+"\s*>)', lambda m: m.group(1) + props, new, count=1)
+        if n != 1:
+            sys.exit(f"{scene}: no <integrator type=...> to add {integrator_props} to")
     path = os.path.join(os.path.dirname(scene), f".bench-{sampler}-{os.path.basename(scene)}")
     with open(path, "w") as f:
         f.write(new)
     return path
 
 
-def snell_images(args, scene, params, sampler, spp, seeds, out):
-    """Renders `scene` with Snell's `sampler` once per seed; returns (seconds, [pfm paths])."""
-    path = scene_with_sampler(scene, sampler)
+def snell_images(args, scene, params, sampler, spp, seeds, out, variant=""):
+    """Renders `scene` with Snell's `sampler` once per seed (`variant`: the
+    integrator's extra KEY=VALUE,... properties); returns (seconds, [pfm paths])."""
+    path = scene_with_sampler(scene, sampler, [kv for kv in variant.split(",") if kv])
     secs, files = [], []
     try:
         for seed in seeds:
@@ -579,9 +589,11 @@ def efficiency_scene(args, scene):
     _, _, ref_px = read_pfm(ref[1][0])
     seeds = list(range(1, args.runs + 1))
     rows = []
-    jobs = [("snell", s) for s in ([] if args.no_snell else SNELL_SAMPLERS)] + [("mitsuba", s) for s in MITSUBA_SAMPLERS]
-    for who, sampler in jobs:
-        got = (snell_images(args, scene, params, sampler, args.spp, seeds, out) if who == "snell"
+    variants = args.snell_integrator or [""]
+    jobs = [("snell", s, v) for v in variants for s in ([] if args.no_snell else args.snell_samplers.split(","))]
+    jobs += [("mitsuba", s, "") for s in MITSUBA_SAMPLERS]
+    for who, sampler, variant in jobs:
+        got = (snell_images(args, scene, params, sampler, args.spp, seeds, out, variant) if who == "snell"
                else mitsuba_images(args, scene, sampler, args.spp, seeds, out))
         if got is None:
             continue
@@ -594,10 +606,12 @@ def efficiency_scene(args, scene):
         e = statistics.mean(errs)
         wall, cpu = statistics.median(s[0] for s in secs), statistics.median(s[1] for s in secs)
         t = cpu / args.threads if args.cpu_time else wall
+        if variant:
+            sampler = f"{sampler}+{variant}"
         row = {"renderer": who, "sampler": sampler, "rel_mse": e, "seconds": t, "wall_seconds": wall,
                "cpu_seconds": cpu, "efficiency": 1.0 / (e * t)}
         rows.append(row)
-        print(f"  {who:<8} {sampler:<12} relMSE {e:.4e}  wall {wall:7.3f} s  cpu {cpu:7.3f} s  "
+        print(f"  {who:<8} {sampler:<34} relMSE {e:.4e}  wall {wall:7.3f} s  cpu {cpu:7.3f} s  "
               f"efficiency {row['efficiency']:10.1f}")
     os.remove(ref[1][0])
     mits = [r for r in rows if r["renderer"] == "mitsuba"]
@@ -614,10 +628,10 @@ def efficiency(args, scenes):
     print(f"summary: efficiency = 1/(relMSE × {'CPU seconds / threads' if args.cpu_time else 'seconds'}), "
           f"{args.spp} spp, {args.res}², {args.threads} threads; "
           "× = relative to Mitsuba's best sampler on that scene")
-    print(f"{'scene':<36} {'renderer':<8} {'sampler':<12} {'relMSE':>10} {'seconds':>8} {'efficiency':>11} {'×':>6}")
+    print(f"{'scene':<36} {'renderer':<8} {'sampler':<34} {'relMSE':>10} {'seconds':>8} {'efficiency':>11} {'×':>6}")
     for res in results:
         for r in res["rows"]:
-            print(f"{res['scene']:<36} {r['renderer']:<8} {r['sampler']:<12} {r['rel_mse']:10.3e} "
+            print(f"{res['scene']:<36} {r['renderer']:<8} {r['sampler']:<34} {r['rel_mse']:10.3e} "
                   f"{r['seconds']:8.3f} {r['efficiency']:11.1f} {r.get('vs_mitsuba_best', float('nan')):6.2f}")
     if args.json:
         with open(args.json, "w") as f:
@@ -656,6 +670,11 @@ def main():
     ap.add_argument("--cpu-time", action="store_true",
                     help="--efficiency: seconds = CPU time / threads instead of wall time (for a loaded machine)")
     ap.add_argument("--mitsuba-python", help="a Python that imports mitsuba, for --mesh and --efficiency (default: .venv-mitsuba)")
+    ap.add_argument("--snell-samplers", default=",".join(SNELL_SAMPLERS),
+                    help="--efficiency: Snell's samplers to measure (comma-separated)")
+    ap.add_argument("--snell-integrator", action="append", default=[], metavar="KEY=VALUE[,...]",
+                    help="--efficiency: a variant of Snell's integrator, integer properties added to it "
+                         "(e.g. bsdf_samples=2; repeatable, each one measured; an empty one is the scene's own)")
     ap.add_argument("--mitsuba-efficiency-worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--sampler", help=argparse.SUPPRESS)
     ap.add_argument("--seeds", help=argparse.SUPPRESS)

@@ -14,6 +14,8 @@
 //! | `rr_depth` | integer | 5 | depth at which Russian roulette starts |
 //! | `hide_emitters` | boolean | false | hide directly visible emitters (camera rays pass through emitting shapes) |
 //! | `light_sampling` | string | `bvh` | how emitters are chosen: `uniform` (as Mitsuba), `power`, `bvh` ([`crate::emitter::selection`]) |
+//! | `emitter_samples` | integer | 1 | emitter samples at the first vertex ([`crate::integrator::path_split`]) |
+//! | `bsdf_samples` | integer | 1 | paths continued from the first vertex ([`crate::integrator::path_split`]) |
 //!
 //! ```xml
 //! <integrator type="path"><integer name="max_depth" value="8"/></integrator>
@@ -34,6 +36,9 @@ pub struct PathTracer {
     pub max_depth: u32,
     pub rr_depth: u32,
     pub hide_emitters: bool,
+    /// Splitting at the first vertex ([`crate::integrator::path_split`]); 1, 1 = none.
+    pub emitter_samples: u32,
+    pub bsdf_samples: u32,
 }
 
 impl PathTracer {

@@ -36,7 +36,7 @@ pub fn round_sample_count(n: u32) -> u32 {
 pub(crate) struct LdSampler {
     id: SampleId,
     dimension: u32,
-    dim: u32,
+    pub(super) dim: u32,
 }
 
 impl LdSampler {

@@ -265,6 +265,26 @@ impl Sampler {
     }
 }
 
+impl Sampler {
+    /// Continues the sample at draw number `dim`: the next draw is the one
+    /// a fresh sample would make after `dim` draws. Splitting integrators
+    /// give each split branch its own fixed block of dimensions, so that a
+    /// branch's draws stay aligned across the pixel's samples (and keep the
+    /// pattern's stratification) however many draws the branches before it
+    /// took. `independent` has nothing to align: its stream just goes on.
+    pub fn set_dimension(&mut self, dim: u32) {
+        match &mut self.method {
+            Method::Independent(_) => {}
+            Method::Stratified(s) => s.dim = dim,
+            Method::Multijitter(s) => s.dim = dim,
+            Method::Orthogonal(s) => s.coord = dim,
+            Method::LdSampler(s) => s.dim = dim,
+            Method::Sobol(s) => s.dim = dim,
+            Method::ZSobol(s) => s.dim = dim,
+        }
+    }
+}
+
 // ----------------------------------------------------------------- shared tools
 
 /// The largest float below 1.
@@ -520,5 +540,40 @@ pub(crate) mod testing {
         let indep = spec(SamplerKind::Independent, ours.sample_count, 11);
         let (a, b) = (mean_discrepancy(&ours, 24), mean_discrepancy(&indep, 24));
         assert!(a < 0.7 * b, "{}: L2 star discrepancy² {a:.3e} not below independent's {b:.3e}", kind.name());
+    }
+}
+
+#[cfg(test)]
+mod set_dimension_tests {
+    use super::testing::spec;
+    use super::*;
+
+    /// After `set_dimension(d)` a sample draws what a fresh one draws after
+    /// d draws, for every sampler (`independent` just goes on).
+    #[test]
+    fn set_dimension_continues_at_that_draw() {
+        let kinds = [
+            SamplerKind::Stratified { jitter: true, dimension: u32::MAX },
+            SamplerKind::Multijitter { jitter: true },
+            SamplerKind::Orthogonal { jitter: true, strength: 2 },
+            SamplerKind::LdSampler { dimension: u32::MAX },
+            SamplerKind::Sobol,
+            SamplerKind::ZSobol { log2_res: 0 },
+        ];
+        for kind in kinds {
+            let spec = spec(kind, 16, 3);
+            for d in [0u32, 1, 5, 4096, 8192 + 7] {
+                let mut fresh = Sampler::start(&spec, 2, 3, 5);
+                for _ in 0..d {
+                    fresh.next_1d();
+                }
+                let mut jumped = Sampler::start(&spec, 2, 3, 5);
+                jumped.next_2d();
+                jumped.next_1d();
+                jumped.set_dimension(d);
+                let (a, b) = ((fresh.next_2d(), fresh.next_1d()), (jumped.next_2d(), jumped.next_1d()));
+                assert_eq!(a, b, "{}: dimension {d}", kind.name());
+            }
+        }
     }
 }

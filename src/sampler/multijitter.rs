@@ -53,7 +53,7 @@ pub(crate) struct Multijitter {
     cols: u32,
     rows: u32,
     jitter: bool,
-    dim: u32,
+    pub(super) dim: u32,
 }
 
 impl Multijitter {

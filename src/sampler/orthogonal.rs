@@ -58,7 +58,7 @@ pub(crate) struct Orthogonal {
     strength: u32,
     jitter: bool,
     /// Coordinates drawn so far.
-    coord: u32,
+    pub(super) coord: u32,
 }
 
 impl Orthogonal {

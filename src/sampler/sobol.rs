@@ -30,6 +30,7 @@ use glam::Vec2;
 /// x + 1 with m₁ = 1: v₀ = 2³¹, v_k = v_{k−1} ⊕ (v_{k−1} ≫ 1) — the Pascal
 /// matrix mod 2, truncated to 32 bits of precision (64 columns, for 64-bit
 /// indices).
+#[cfg(test)]
 pub(crate) const SOBOL1: [u32; 64] = {
     let mut v = [0u32; 64];
     v[0] = 1 << 31;
@@ -47,9 +48,28 @@ pub(crate) fn sobol0(index: u64) -> u32 {
     (index as u32).reverse_bits()
 }
 
-/// Sobol dimension 1 of `index` as 32 fraction bits.
+/// Sobol dimension 1 of `index` as 32 fraction bits, without a loop over
+/// the index's bits. Column k of the matrix has fraction bit j (counted from
+/// the top) set iff C(k, j) is odd, i.e. iff j ⊆ k as bit sets (Lucas), so
+/// result bit j is the parity of the index bits at the supersets of j: the
+/// GF(2) superset transform of the index, six shift-and-xor steps (the
+/// Pascal matrix mod 2 is the 6-fold Kronecker power of [[1,1],[0,1]]).
 #[inline]
-pub(crate) fn sobol1(mut index: u64) -> u32 {
+pub(crate) fn sobol1(index: u64) -> u32 {
+    let mut z = index;
+    z ^= (z >> 1) & 0x5555_5555_5555_5555;
+    z ^= (z >> 2) & 0x3333_3333_3333_3333;
+    z ^= (z >> 4) & 0x0f0f_0f0f_0f0f_0f0f;
+    z ^= (z >> 8) & 0x00ff_00ff_00ff_00ff;
+    z ^= (z >> 16) & 0x0000_ffff_0000_ffff;
+    z ^= z >> 32;
+    (z as u32).reverse_bits()
+}
+
+/// [`sobol1`] by the matrix's columns, one per index bit (the definition;
+/// kept for the test that the two agree).
+#[cfg(test)]
+fn sobol1_by_columns(mut index: u64) -> u32 {
     let mut v = 0;
     let mut k = 0;
     while index != 0 {
@@ -78,7 +98,7 @@ pub(crate) fn owen_scramble(x: u32, seed: u32) -> u32 {
 
 pub(crate) struct Sobol {
     id: SampleId,
-    dim: u32,
+    pub(super) dim: u32,
 }
 
 impl Sobol {
@@ -126,6 +146,18 @@ mod tests {
         for m in 1..=10 {
             let pts: Vec<Vec2> = (0..1u64 << m).map(|i| Vec2::new(unit(sobol0(i)), unit(sobol1(i)))).collect();
             assert_net(&pts, "Sobol");
+        }
+    }
+
+    #[test]
+    fn sobol1_transform_equals_the_matrix_product() {
+        let mut x = 0x1234_5678_9abc_def0u64;
+        for i in 0..20000u64 {
+            x = mix64(x ^ i);
+            // Indices of every size: all 64 bits, and the small ones pixels use.
+            for idx in [i, x, x >> (x % 64), x & 0xfffff] {
+                assert_eq!(sobol1(idx), sobol1_by_columns(idx), "index {idx:#x}");
+            }
         }
     }
 

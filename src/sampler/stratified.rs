@@ -46,7 +46,7 @@ pub(crate) struct Stratified {
     res: u32,
     jitter: bool,
     dimension: u32,
-    dim: u32,
+    pub(super) dim: u32,
 }
 
 impl Stratified {

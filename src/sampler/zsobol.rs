@@ -67,7 +67,7 @@ pub(crate) struct ZSobol {
     /// Bits of `morton_index` that are shuffled: 2·log2_res + m.
     bits: u32,
     seed: u64,
-    dim: u32,
+    pub(super) dim: u32,
 }
 
 impl ZSobol {

@@ -386,7 +386,7 @@ impl Loader {
             sampler.seed = seed;
         }
         let integrator =
-            integrator.unwrap_or(Integrator::Path(PathTracer { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false }));
+            integrator.unwrap_or(Integrator::Path(PathTracer { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false, emitter_samples: 1, bsdf_samples: 1 }));
         if let Integrator::Sppm(sppm) = &integrator {
             if sppm.max_passes > 0 && options.spp.is_none() {
                 sampler.set_sample_count(sppm.max_passes);
@@ -1190,6 +1190,8 @@ impl Loader {
                     max_depth: self.depth_limit(&props, "max_depth", max_depth),
                     rr_depth: self.depth_limit(&props, "rr_depth", rr_depth),
                     hide_emitters: props.bool("hide_emitters", false)?,
+                    emitter_samples: props.int_checked("emitter_samples", 1, |v| (0..=1024).contains(&v), "between 0 and 1024")? as u32,
+                    bsdf_samples: props.int_checked("bsdf_samples", 1, |v| (1..=1024).contains(&v), "between 1 and 1024")? as u32,
                 })
             }
             "ptracer" => {
