@@ -139,13 +139,8 @@ impl Mesh {
             area: 0.0,
             area_distribution: Default::default(),
         };
-        if let Some(ns) = &mut mesh.normals {
-            for n in ns.iter_mut() {
-                *n = n.normalize_or_zero();
-                if flip_normals {
-                    *n = -*n;
-                }
-            }
+        if let Some(ns) = mesh.normals.take() {
+            mesh.set_vertex_normals(ns);
         }
         if mesh.triangles.len() <= STORED_NORMALS_MAX {
             mesh.face_normals = (0..mesh.triangles.len()).map(|i| mesh.face_normal(i)).collect();
@@ -154,6 +149,18 @@ impl Mesh {
         // `area()` equals the distribution's sum bit for bit.
         mesh.area = (0..mesh.triangles.len()).fold(0.0f64, |acc, i| acc + mesh.triangle_area(i).max(0.0) as f64) as f32;
         mesh
+    }
+
+    /// Sets the per-vertex shading normals (normalised, and flipped if
+    /// the mesh flips its normals), as `new` does with the normals given.
+    pub fn set_vertex_normals(&mut self, mut normals: Vec<Vec3>) {
+        for n in normals.iter_mut() {
+            *n = n.normalize_or_zero();
+            if self.flip_normals {
+                *n = -*n;
+            }
+        }
+        self.normals = Some(normals);
     }
 
     fn area_distribution(&self) -> &DiscreteDistribution {
