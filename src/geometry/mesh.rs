@@ -343,12 +343,24 @@ impl Mesh {
                 }
             }
         }
-        self.positions = Shared(old_of.iter().map(|&o| self.positions[o as usize]).collect());
-        if let Some(ns) = &mut self.normals {
-            *ns = old_of.iter().map(|&o| ns[o as usize]).collect();
+        // The vertex gathers in parallel (each the same values as in order).
+        use rayon::prelude::*;
+        let positions = &self.positions;
+        let (new_positions, (normals, uvs)) = rayon::join(
+            || old_of.par_iter().map(|&o| positions[o as usize]).collect::<Arc<[Vec3]>>(),
+            || {
+                rayon::join(
+                    || self.normals.as_ref().map(|ns| old_of.par_iter().map(|&o| ns[o as usize]).collect::<Vec<_>>()),
+                    || self.uvs.as_ref().map(|uvs| old_of.par_iter().map(|&o| uvs[o as usize]).collect::<Vec<_>>()),
+                )
+            },
+        );
+        self.positions = Shared(new_positions);
+        if normals.is_some() {
+            self.normals = normals;
         }
-        if let Some(uvs) = &mut self.uvs {
-            *uvs = old_of.iter().map(|&o| uvs[o as usize]).collect();
+        if uvs.is_some() {
+            self.uvs = uvs;
         }
         drop(old_of);
         // Per-triangle data: rows of `row` floats or vectors, gathered in the new order.

@@ -707,7 +707,10 @@ impl Loader {
             _ => mesh_io::read_ply(&path),
         }
         .map_err(|e| with_search_help(SceneError::at(file_loc, e), node, filename))?;
-        let positions: Vec<Vec3> = raw.positions.iter().map(|&p| to_world.point(p)).collect();
+        let positions: Vec<Vec3> = {
+            use rayon::prelude::*;
+            raw.positions.par_iter().map(|&p| to_world.point(p)).collect()
+        };
         // A big mesh's vertex normals are computed on a thread of their own
         // (`pending_normals`), the same bits as here.
         let overlapped = !face_normals && raw.normals.is_none() && raw.triangles.len() >= OVERLAPPED_NORMALS_MIN;
