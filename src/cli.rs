@@ -403,6 +403,9 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         json["load_seconds"] = load_seconds.into();
         json["scene"] = args.scene.display().to_string().into();
         json["simd"] = scene.accel.simd_level().name().into();
+        json["bvh_nodes"] = if scene.accel.quantized() { "quantized" } else { "full" }.into();
+        json["bvh_node_bytes"] = scene.accel.node_bytes().into();
+        json["bvh_bytes"] = scene.accel.memory_bytes().into();
         json["mode"] = args.mode.to_possible_value().map_or_else(String::new, |v| v.get_name().to_string()).into();
         std::fs::write(path, serde_json::to_string_pretty(&json)? + "\n").with_context(|| format!("cannot write {}", path.display()))?;
     }

@@ -594,3 +594,40 @@ fn ply_and_serialized_uvs_are_not_flipped() {
     let uv0 = m.uvs.as_ref().unwrap()[m.positions.iter().position(|p| *p == Vec3::ZERO).unwrap()];
     assert!((uv0 - Vec2::new(0.1, 0.8)).length() < 1e-6, "OBJ v is flipped by default: {uv0}");
 }
+
+/// A mesh big enough to compute its vertex normals on a thread of its own
+/// while the rest loads (and the BVH builds) gets the same normals, bit for
+/// bit, as computing them in place, flipped or not, next to a small mesh
+/// that computes them at once.
+#[test]
+fn overlapped_vertex_normals_are_the_same_bits() {
+    let dir = temp_dir("overlapped-normals");
+    let big = bumpy_grid(190); // 72 200 triangles: over the overlap threshold
+    assert!(big.triangles.len() >= 1 << 16);
+    write_ply(&dir.join("big.ply"), &big);
+    write_ply(&dir.join("small.ply"), &bumpy_grid(8));
+    let transform = r#"<transform name="to_world"><rotate z="1" angle="20"/><scale x="1.5" y="0.8" z="1.1"/><translate x="0.3"/></transform>"#;
+    let text = scene(&format!(
+        "    <shape type=\"ply\"><string name=\"filename\" value=\"big.ply\"/>{transform}</shape>\n\
+         <shape type=\"ply\"><string name=\"filename\" value=\"small.ply\"/></shape>\n\
+         <shape type=\"ply\"><string name=\"filename\" value=\"big.ply\"/><boolean name=\"flip_normals\" value=\"true\"/></shape>\n"
+    ));
+    let scene = load(&dir.join("scene.xml"), &text).unwrap();
+    assert_eq!(scene.shapes.len(), 3);
+    for (k, flip) in [(0, false), (1, false), (2, true)] {
+        let snell::geometry::shape::ShapeGeometry::Mesh(m) = &scene.shapes[k].geometry else { panic!("shape {k} is not a mesh") };
+        let mut expected = snell::geometry::mesh::Mesh::compute_vertex_normals(&m.positions, &m.triangles);
+        for n in &mut expected {
+            *n = n.normalize_or_zero();
+            if flip {
+                *n = -*n;
+            }
+        }
+        let got = m.normals.as_ref().expect("vertex normals");
+        assert_eq!(got.len(), expected.len());
+        let same = got.iter().zip(&expected).all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits));
+        assert!(same, "shape {k}: normals differ");
+        assert!(got.iter().all(|n| (n.length() - 1.0).abs() < 1e-5));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

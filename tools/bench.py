@@ -30,6 +30,15 @@ render-time memory does not depend on the mesh). Load CPU seconds (user + system
 all threads) are less disturbed by a busy machine than wall seconds: Snell's from a
 second run at 16², 1 spp, Mitsuba's around load_file. Prints the CPU's SIMD width.
 
+--simd avx2 (or avx512, baseline) limits both to that instruction set: Snell with
+SNELL_SIMD; Mitsuba's Dr.Jit LLVM backend with jit_llvm_set_target (avx2: CPU
+"haswell", AVX-512 features off, 8 lanes; baseline: "x86-64", 4 lanes; called
+through ctypes, as the Python API does not expose it). Embree, which Mitsuba uses to
+trace rays, cannot be limited: Mitsuba's bundled Embree 3 picks its kernels from the
+CPU (its config string is fixed and it reads no config file), so on an AVX-512
+machine its 8-wide packet kernels are the AVX-512 build's. Without --simd both use
+the best the CPU has.
+
 --efficiency measures error per second instead: for each scene it renders a
 high-spp reference (--ref-spp, Mitsuba llvm_ad_rgb independent if Mitsuba is
 there, else Snell's sobol), then renders --runs images per sampler (seeds
@@ -62,6 +71,39 @@ import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 LLVM_LIB = "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1"
+# --simd: Dr.Jit's LLVM target (CPU, features, vector width) per level.
+DRJIT_TARGETS = {
+    "avx2": ("haswell", "-avx512f,-avx512vl,-avx512dq,-avx512bw,-avx512cd", 8),
+    "baseline": ("x86-64", "-avx,-avx2,-fma,-avx512f,-avx512vl,-avx512dq,-avx512bw,-avx512cd", 4),
+}
+
+
+def snell_env(args):
+    """The environment Snell runs in: SNELL_SIMD set by --simd."""
+    env = dict(os.environ)
+    if args.simd:
+        env["SNELL_SIMD"] = args.simd
+    return env
+
+
+def limit_drjit(simd):
+    """In a Mitsuba worker, after set_variant: limits Dr.Jit's LLVM backend to --simd
+    (jit_llvm_set_target of libdrjit-core, through ctypes); reports the target on stderr."""
+    import ctypes
+    import drjit as dr
+    try:
+        lib = ctypes.CDLL(os.path.join(os.path.dirname(dr.__file__), "libdrjit-core.so"))
+        cpu, width = lib._Z19jit_llvm_target_cpuv, lib._Z21jit_llvm_vector_widthv
+    except (OSError, AttributeError) as e:
+        print(f"  mitsuba: cannot reach Dr.Jit's LLVM target ({e}); not limited", file=sys.stderr)
+        return
+    cpu.restype, width.restype = ctypes.c_char_p, ctypes.c_uint32
+    if simd in DRJIT_TARGETS:
+        set_target = lib._Z19jit_llvm_set_targetPKcS0_j
+        set_target.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32]
+        c, f, w = DRJIT_TARGETS[simd]
+        set_target(c.encode(), f.encode(), w)
+    print(f"  mitsuba: Dr.Jit LLVM target {cpu().decode()}, {width()} lanes (Embree: not limited)", file=sys.stderr)
 VENV_PY = os.path.join(ROOT, ".venv-mitsuba", "bin", "python")
 
 
@@ -95,7 +137,7 @@ def bench_snell(args, params):
         if os.path.exists("/tmp/stats.json"):
             os.remove("/tmp/stats.json")
         r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                           text=True)
+                           text=True, env=snell_env(args))
         if r.returncode != 0:
             print(r.stdout)
             sys.exit(f"snell failed with exit code {r.returncode}")
@@ -122,6 +164,8 @@ def mitsuba_worker(args, params):
 
     mi.set_variant(MITSUBA_VARIANT[args.mode])
     dr.set_thread_count(args.threads)
+    if args.simd:
+        limit_drjit(args.simd)
     scene = mi.load_file(args.scene, **params)
     w, h = scene.sensors()[0].film().size()
     n = int(w) * int(h) * args.spp
@@ -163,6 +207,8 @@ def bench_mitsuba(args):
     argv = ["--mitsuba-worker", "--scene", args.scene, "--spp", str(args.spp),
             "--res", str(args.res), "--max-depth", str(args.max_depth),
             "--threads", str(args.threads), "--runs", str(args.runs), "--mode", args.mode]
+    if args.simd:
+        argv += ["--simd", args.simd]
     for kv in args.defines:
         argv += ["-D", kv]
     r = subprocess.run([py, os.path.abspath(__file__)] + argv,
@@ -280,14 +326,14 @@ def mesh_snell_once(args, xml):
     stats = os.path.join(MESH_DIR, "stats.json")
     cmd = [args.snell, "render", xml, "-o", os.path.join(MESH_DIR, "out.exr"), "--threads", str(args.threads),
            "--stats", stats, "--quiet"]
-    code, out, rss = run_measured(cmd)
+    code, out, rss = run_measured(cmd, env=snell_env(args))
     if code != 0:
         sys.exit(f"snell failed ({code}):\n{out}")
     with open(stats) as f:
         st = json.load(f)
     # CPU seconds of loading: a run that renders a 16² image at 1 spp.
     cpu = {}
-    code, out, _ = run_measured(cmd + ["-D", "res=16", "-D", "spp=1"], cpu=cpu)
+    code, out, _ = run_measured(cmd + ["-D", "res=16", "-D", "spp=1"], env=snell_env(args), cpu=cpu)
     if code != 0:
         sys.exit(f"snell failed ({code}):\n{out}")
     return {"load": float(st["load_seconds"]), "render": float(st["render_seconds"]), "rss": rss,
@@ -302,6 +348,8 @@ def mitsuba_mesh_worker(args):
     import mitsuba as mi
     mi.set_variant("llvm_ad_rgb")
     dr.set_thread_count(args.threads)
+    if args.simd:
+        limit_drjit(args.simd)
     t = time.perf_counter()
     r0 = resource.getrusage(resource.RUSAGE_SELF)
     scene = mi.load_file(args.scene[0])
@@ -325,7 +373,7 @@ def mesh_mitsuba_once(args, xml, py):
     env = dict(os.environ)
     env.setdefault("DRJIT_LIBLLVM_PATH", LLVM_LIB)
     code, out, _ = run_measured([py, os.path.abspath(__file__), "--mitsuba-mesh-worker", "--scene", xml,
-                                 "--threads", str(args.threads)], env)
+                                 "--threads", str(args.threads)] + (["--simd", args.simd] if args.simd else []), env)
     if code != 0:
         print(f"mitsuba: worker failed ({code}):\n{out}")
         return None
@@ -348,7 +396,7 @@ def bench_mesh(args):
             py = VENV_PY if os.path.exists(VENV_PY) else None
     have_snell = not args.no_snell and os.access(args.snell, os.X_OK)
     print(f"mesh benchmark: {args.mesh_res}², {args.mesh_spp} spp, {args.threads} threads, "
-          f"{args.runs} runs; CPU SIMD: {cpu_simd()}")
+          f"{args.runs} runs; CPU SIMD: {cpu_simd()}" + (f"; limited to {args.simd}" if args.simd else ""))
     rows = []
     for fmt in formats:
         base = {}
@@ -407,7 +455,8 @@ def bench_scene(args):
     """Snell then Mitsuba on args.scene; prints and returns the figures."""
     params = scene_params(args.scene, args.res, args.max_depth, args.defines)
     rel = os.path.relpath(args.scene, ROOT)
-    print(f"== {rel} ({args.mode}): {args.res}², {args.spp} spp, {params}, {args.threads} threads")
+    print(f"== {rel} ({args.mode}): {args.res}², {args.spp} spp, {params}, {args.threads} threads"
+          + (f", limited to {args.simd}" if args.simd else ""))
     res = {"scene": rel, "mode": args.mode, "spp": args.spp, "params": params, "threads": args.threads}
     res["snell"] = None if args.no_snell else bench_snell(args, params)
     res["mitsuba"] = None if args.no_mitsuba else bench_mitsuba(args)
@@ -664,6 +713,8 @@ def main():
     ap.add_argument("--mesh-res", type=int, default=512)
     ap.add_argument("--mesh-spp", type=int, default=16)
     ap.add_argument("--mitsuba-mesh-worker", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--simd", choices=["baseline", "avx2", "avx512"],
+                    help="limit Snell (SNELL_SIMD) and Mitsuba's Dr.Jit (LLVM target) to this instruction set")
     ap.add_argument("--efficiency", action="store_true",
                     help="error per second per sampler (1/(relMSE × seconds)) instead of samples per second")
     ap.add_argument("--ref-spp", type=int, default=16384, help="samples of the --efficiency reference")

@@ -139,13 +139,8 @@ impl Mesh {
             area: 0.0,
             area_distribution: Default::default(),
         };
-        if let Some(ns) = &mut mesh.normals {
-            for n in ns.iter_mut() {
-                *n = n.normalize_or_zero();
-                if flip_normals {
-                    *n = -*n;
-                }
-            }
+        if let Some(ns) = mesh.normals.take() {
+            mesh.set_vertex_normals(ns);
         }
         if mesh.triangles.len() <= STORED_NORMALS_MAX {
             mesh.face_normals = (0..mesh.triangles.len()).map(|i| mesh.face_normal(i)).collect();
@@ -154,6 +149,18 @@ impl Mesh {
         // `area()` equals the distribution's sum bit for bit.
         mesh.area = (0..mesh.triangles.len()).fold(0.0f64, |acc, i| acc + mesh.triangle_area(i).max(0.0) as f64) as f32;
         mesh
+    }
+
+    /// Sets the per-vertex shading normals (normalised, and flipped if
+    /// the mesh flips its normals), as `new` does with the normals given.
+    pub fn set_vertex_normals(&mut self, mut normals: Vec<Vec3>) {
+        for n in normals.iter_mut() {
+            *n = n.normalize_or_zero();
+            if self.flip_normals {
+                *n = -*n;
+            }
+        }
+        self.normals = Some(normals);
     }
 
     fn area_distribution(&self) -> &DiscreteDistribution {
@@ -342,12 +349,24 @@ impl Mesh {
                 }
             }
         }
-        self.positions = Shared(old_of.iter().map(|&o| self.positions[o as usize]).collect());
-        if let Some(ns) = &mut self.normals {
-            *ns = old_of.iter().map(|&o| ns[o as usize]).collect();
+        // The vertex gathers in parallel (each the same values as in order).
+        use rayon::prelude::*;
+        let positions = &self.positions;
+        let (new_positions, (normals, uvs)) = rayon::join(
+            || old_of.par_iter().map(|&o| positions[o as usize]).collect::<Arc<[Vec3]>>(),
+            || {
+                rayon::join(
+                    || self.normals.as_ref().map(|ns| old_of.par_iter().map(|&o| ns[o as usize]).collect::<Vec<_>>()),
+                    || self.uvs.as_ref().map(|uvs| old_of.par_iter().map(|&o| uvs[o as usize]).collect::<Vec<_>>()),
+                )
+            },
+        );
+        self.positions = Shared(new_positions);
+        if normals.is_some() {
+            self.normals = normals;
         }
-        if let Some(uvs) = &mut self.uvs {
-            *uvs = old_of.iter().map(|&o| uvs[o as usize]).collect();
+        if uvs.is_some() {
+            self.uvs = uvs;
         }
         drop(old_of);
         // Per-triangle data: rows of `row` floats or vectors, gathered in the new order.

@@ -177,7 +177,15 @@ struct Loader {
     /// The files read besides the scene's XML (meshes, images), in the
     /// order first read: [`Scene::files`].
     files: std::cell::RefCell<Vec<PathBuf>>,
+    /// Vertex normals of big meshes computed on their own thread while the
+    /// following shapes load and the BVH builds: (shape index, normals).
+    pending_normals: std::cell::RefCell<Vec<(usize, std::thread::JoinHandle<Vec<Vec3>>)>>,
 }
+
+/// Meshes of at least this many triangles compute their vertex normals on
+/// a thread of their own, overlapped with the rest of the load and the
+/// BVH build (`Loader::pending_normals`); smaller ones at once.
+const OVERLAPPED_NORMALS_MIN: usize = 1 << 16;
 
 fn collect_ids(node: &Node, ids: &mut HashMap<String, Arc<Node>>) -> Result<()> {
     for c in &node.children {
@@ -285,6 +293,7 @@ impl Loader {
             film_width: None,
             light_sampling: Default::default(),
             files: Default::default(),
+            pending_normals: Default::default(),
         })
     }
 
@@ -421,6 +430,14 @@ impl Loader {
             }
         }
         let mut accel = Accel::build_instanced(&self.shapes, &self.top_shapes, &self.groups, &self.instances);
+        // The vertex normals computed meanwhile, before the meshes are
+        // renumbered below.
+        for (si, job) in self.pending_normals.take() {
+            let normals = job.join().map_err(|_| SceneError::file(&root.loc.file.path, "computing a mesh's vertex normals failed"))?;
+            if let ShapeGeometry::Mesh(m) = &mut self.shapes[si].geometry {
+                m.set_vertex_normals(normals);
+            }
+        }
         // Big meshes renumbered in the BVH's leaf order, before the mesh
         // attribute tables and the emitters' samplers read them.
         accel.store_meshes_in_leaf_order(&mut self.shapes);
@@ -690,8 +707,14 @@ impl Loader {
             _ => mesh_io::read_ply(&path),
         }
         .map_err(|e| with_search_help(SceneError::at(file_loc, e), node, filename))?;
-        let positions: Vec<Vec3> = raw.positions.iter().map(|&p| to_world.point(p)).collect();
-        let normals = if face_normals {
+        let positions: Vec<Vec3> = {
+            use rayon::prelude::*;
+            raw.positions.par_iter().map(|&p| to_world.point(p)).collect()
+        };
+        // A big mesh's vertex normals are computed on a thread of their own
+        // (`pending_normals`), the same bits as here.
+        let overlapped = !face_normals && raw.normals.is_none() && raw.triangles.len() >= OVERLAPPED_NORMALS_MIN;
+        let normals = if face_normals || overlapped {
             None
         } else {
             Some(match raw.normals {
@@ -706,6 +729,15 @@ impl Loader {
         let attributes = raw.attributes.iter().map(|(n, a)| (n.clone(), Arc::new(a.to_corners(&raw.triangles)))).collect();
         let mut mesh = Mesh::new(positions, normals, uvs, raw.triangles, flip);
         mesh.attributes = attributes;
+        if overlapped {
+            let (positions, triangles) = (mesh.positions.clone(), mesh.triangles.clone());
+            let job = std::thread::Builder::new()
+                .name("snell-normals".into())
+                .spawn(move || Mesh::compute_vertex_normals(&positions, &triangles))
+                .map_err(|e| SceneError::at(file_loc, format!("cannot start a thread for the vertex normals: {e}")))?;
+            // `shape` pushes this mesh's shape next.
+            self.pending_normals.borrow_mut().push((self.shapes.len(), job));
+        }
         Ok(mesh)
     }
 

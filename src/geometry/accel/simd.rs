@@ -31,6 +31,8 @@ pub trait Lanes: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = S
     fn splat(x: f32) -> Self;
     fn from_array(a: [f32; 8]) -> Self;
     fn load(a: &[f32; 8]) -> Self;
+    /// Eight bytes widened to f32 (0..=255, exact).
+    fn from_u8(a: &[u8; 8]) -> Self;
     fn to_array(self) -> [f32; 8];
     /// self · b − c (fused on FMA hardware).
     fn mul_sub(self, b: Self, c: Self) -> Self;
@@ -145,6 +147,10 @@ mod avx {
             Avx(unsafe { _mm256_loadu_ps(a.as_ptr()) })
         }
         #[inline(always)]
+        fn from_u8(a: &[u8; 8]) -> Avx {
+            Avx(unsafe { _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(a.as_ptr() as *const __m128i))) })
+        }
+        #[inline(always)]
         fn to_array(self) -> [f32; 8] {
             let mut a = [0.0; 8];
             unsafe { _mm256_storeu_ps(a.as_mut_ptr(), self.0) };
@@ -244,6 +250,10 @@ impl Lanes for Portable {
         Portable(*a)
     }
     #[inline(always)]
+    fn from_u8(a: &[u8; 8]) -> Portable {
+        Portable(a.map(f32::from))
+    }
+    #[inline(always)]
     fn to_array(self) -> [f32; 8] {
         self.0
     }
@@ -339,6 +349,7 @@ mod tests {
         assert_eq!(a.sign().bitmask(), 0b0010_1010);
         assert_eq!(a.xor(a.sign()).to_array(), a.to_array().map(f32::abs));
         assert_eq!(F::load(&[4.0; 8]).to_array(), [4.0; 8]);
+        assert_eq!(F::from_u8(&[0, 1, 2, 127, 128, 200, 254, 255]).to_array(), [0.0, 1.0, 2.0, 127.0, 128.0, 200.0, 254.0, 255.0]);
     }
 
     #[test]
