@@ -538,7 +538,7 @@ fn render_camera<S: Spectrum>(
     let shared = std::sync::Mutex::new(state);
     // The batched path tracer, where selected and where it applies.
     let wavefront = match &scene.integrator {
-        Integrator::Path(pt) if !S::POLARIZED && n_extra == 0 && options.wavefront.unwrap_or_else(crate::integrator::wavefront::default_for::<S>) => Some(pt),
+        Integrator::Path(pt) if !pt.splits() && !S::POLARIZED && n_extra == 0 && options.wavefront.unwrap_or_else(crate::integrator::wavefront::default_for::<S>) => Some(pt),
         _ => None,
     };
     let setup = crate::integrator::wavefront::CameraSetup { crop_offset: [ox, oy], inv_size };

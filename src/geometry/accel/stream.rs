@@ -93,6 +93,8 @@ impl Accel {
 
     #[inline(always)]
     fn occluded_stream_lanes<V: Lanes>(&self, rays: &[Ray], out: &mut [bool]) {
+        // Instances and quantized nodes (whose `nodes` is empty) take the
+        // single-ray traversal.
         if !self.instances.is_empty() || self.nodes.is_empty() {
             for (ray, o) in rays.iter().zip(out.iter_mut()) {
                 *o = self.occluded_lanes::<V>(ray);
