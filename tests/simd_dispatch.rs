@@ -77,6 +77,22 @@ fn every_level_renders_ply_and_obj_meshes_alike() {
     check_scene("mesh-env", "tests/scenes/mesh-env.xml", &["res=64", "height=48", "spp=16"]);
 }
 
+/// `scene` rendered at 64², 16 spp into `out` with the environment
+/// variables `env` set (they choose the BVH's storage).
+fn render_with_env(scene: &str, out: &Path, env: &[(&str, &str)]) -> snell::film::Image {
+    let o = Command::new(env!("CARGO_BIN_EXE_snell"))
+        .arg("render")
+        .arg(repo(scene))
+        .arg("-o")
+        .arg(out)
+        .args(["--threads", "2", "--quiet", "-D", "res=64", "-D", "spp=16"])
+        .envs(env.iter().copied())
+        .output()
+        .expect("cannot run snell");
+    assert!(o.status.success(), "snell failed: {}", String::from_utf8_lossy(&o.stderr));
+    snell::film::output::read_exr(out).unwrap()
+}
+
 /// The BVH's triangle storages (lanes stored ready for small BVHs,
 /// gathered from the mesh as loaded or, as above `PACKED_MAX_TRIANGLES`,
 /// renumbered in leaf order), forced with `SNELL_TRIANGLES`, give the same
@@ -92,18 +108,7 @@ fn stored_and_gathered_triangles_render_alike() {
         let images: Vec<snell::film::Image> = storages
             .iter()
             .map(|storage| {
-                let out = dir.join(format!("{storage}.exr"));
-                let o = Command::new(env!("CARGO_BIN_EXE_snell"))
-                    .arg("render")
-                    .arg(repo(scene))
-                    .arg("-o")
-                    .arg(&out)
-                    .args(["--threads", "2", "--quiet", "-D", "res=64", "-D", "spp=16"])
-                    .env("SNELL_TRIANGLES", storage)
-                    .output()
-                    .expect("cannot run snell");
-                assert!(o.status.success(), "snell failed: {}", String::from_utf8_lossy(&o.stderr));
-                snell::film::output::read_exr(&out).unwrap()
+                render_with_env(scene, &dir.join(format!("{storage}.exr")), &[("SNELL_TRIANGLES", storage)])
             })
             .collect();
         let m = images[0].pixels.iter().map(|p| p.0.iter().sum::<f32>()).sum::<f32>() / images[0].pixels.len() as f32;
@@ -127,19 +132,7 @@ fn full_and_quantized_nodes_render_alike() {
         let images: Vec<snell::film::Image> = ["full", "quantized"]
             .iter()
             .map(|nodes| {
-                let out = dir.join(format!("{storage}-{nodes}.exr"));
-                let o = Command::new(env!("CARGO_BIN_EXE_snell"))
-                    .arg("render")
-                    .arg(repo("tests/scenes/mesh-env.xml"))
-                    .arg("-o")
-                    .arg(&out)
-                    .args(["--threads", "2", "--quiet", "-D", "res=64", "-D", "spp=16"])
-                    .env("SNELL_TRIANGLES", storage)
-                    .env("SNELL_NODES", nodes)
-                    .output()
-                    .expect("cannot run snell");
-                assert!(o.status.success(), "snell failed: {}", String::from_utf8_lossy(&o.stderr));
-                snell::film::output::read_exr(&out).unwrap()
+                render_with_env("tests/scenes/mesh-env.xml", &dir.join(format!("{storage}-{nodes}.exr")), &[("SNELL_TRIANGLES", storage), ("SNELL_NODES", nodes)])
             })
             .collect();
         let m = images[0].pixels.iter().map(|p| p.0.iter().sum::<f32>()).sum::<f32>() / images[0].pixels.len() as f32;

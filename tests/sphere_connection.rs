@@ -81,34 +81,6 @@ fn reflections_off_drops_match_path_tracing() {
     assert_eq!(mean(&off[0]), [0.0; 3]);
 }
 
-/// `scenes/rainbow.xml` for particle tracing: the same drops and sky, the
-/// sun's disk (0.53°, radiance 20 000) replaced by its direction (a
-/// `directional` emitter of the irradiance the disk gives, 20 000 · π ·
-/// (462.5 / 1e5)² = 1.344), whose light paths start on the drops' side of
-/// the scene instead of 1e5 away (from there a light path would hit the sheet
-/// of drops about once in 1e6), and `ptracer` with the sphere connection.
-pub fn sky_scene() -> String {
-    let text = std::fs::read_to_string(repo("scenes/rainbow.xml")).expect("scenes/rainbow.xml");
-    let (a, b) = (
-        text.find("<integrator").expect("integrator"),
-        text.find("</integrator>").expect("integrator end"),
-    );
-    let text = format!(
-        "{}{}{}",
-        &text[..a],
-        r#"<integrator type="ptracer"><integer name="max_depth" value="$max_depth"/><boolean name="sphere_connection" value="true"/>"#,
-        &text[b..]
-    );
-    let a = text.find(r#"<shape type="disk">"#).expect("sun");
-    let b = a + text[a..].find("</shape>").expect("sun end") + "</shape>".len();
-    format!(
-        "{}{}{}",
-        &text[..a],
-        r#"<emitter type="directional"><vector name="direction" x="0" y="0" z="1"/><rgb name="irradiance" value="1.344"/></emitter>"#,
-        &text[b..]
-    )
-}
-
 /// The sky rainbow, spectral, by particle tracing through the drops: the
 /// angular profile (1° rings around the antisolar point, the image centre)
 /// shows the primary bow ending at Descartes' angle with red outside, and
@@ -119,8 +91,8 @@ fn sky_rainbow_by_particle_tracing() {
     let res = 96u32;
     let t = std::time::Instant::now();
     let img = render_passes_as::<snell::spectrum::sampled::Sampled>(
-        &repo("scenes/rainbow.xml"),
-        Some(&sky_scene()),
+        &repo("scenes/rainbow-sky.xml"),
+        None,
         params(&[("res", &res.to_string())]),
         1,
         32,

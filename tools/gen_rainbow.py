@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes scenes/rainbow.xml: a sheet of rain (water drops, instanced spheres) in
+"""Writes scenes/rainbow.xml (and scenes/rainbow-sky.xml, the same sky for particle tracing): a sheet of rain (water drops, instanced spheres) in
 front of a dark sky, lit by a sun of 0.53 degrees straight behind the camera, so the
 antisolar point is the image centre and the bows are circles around it.
 
@@ -133,7 +133,39 @@ text = f'''<?xml version="1.0" encoding="utf-8"?>
 </scene>
 '''
 
-out = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scenes", "rainbow.xml")
-with open(out, "w") as f:
-    f.write(text)
-print(f"wrote {os.path.normpath(out)}: {n_drops} drops, sun radius {sun_radius:.2f} at {SUN_DIST:g}")
+# The same sky for particle tracing (scenes/rainbow-sky.xml): light paths joined to the
+# pinhole through each drop in closed form (ptracer's sphere_connection), the sun as its
+# direction with the disk's irradiance (radiance x solid angle), since light paths from a
+# disk 1e5 away would almost never reach the sheet.
+sun_irradiance = 20000 * 2 * math.pi * (1 - math.cos(math.radians(SUN_DEG / 2)))
+sky = text.replace(
+    """    <integrator type="path">
+        <integer name="max_depth" value="$max_depth"/>
+    </integrator>""",
+    """    <integrator type="ptracer">
+        <integer name="max_depth" value="$max_depth"/>
+        <boolean name="sphere_connection" value="true"/>
+    </integrator>""")
+a = sky.index("    <!-- The sun: radiance")
+b = sky.index("    </shape>", a) + len("    </shape>")
+sky = sky[:a] + f"""    <!-- The sun as its direction: the irradiance of a disk of radiance 20000 and 0.53 degrees. -->
+    <emitter type="directional">
+        <vector name="direction" x="0" y="0" z="1"/>
+        <rgb name="irradiance" value="{sun_irradiance:.3f}"/>
+    </emitter>""" + sky[b:]
+a = sky.index("<!-- A rainbow in the sky")
+b = sky.index("-->", a) + len("-->")
+sky = sky[:a] + f"""<!-- The sky rainbow of rainbow.xml ({n_drops} drops of dispersive water in front of a dark sky,
+     the sun behind the camera), made to converge: ptracer joins light paths to the pinhole
+     through each drop in closed form (sphere_connection), and the 0.53-degree sun is its
+     direction (directional emitter, the disk's irradiance). Written by tools/gen_rainbow.py.
+     Render with mode spectral for the colours (docs/images/rainbow.png: 256 x 256, 128 spp). -->""" + sky[b:]
+sky = sky.replace('    <default name="sun_radius" value="{:.1f}"/>\n'.format(sun_radius), "").replace('    <default name="sun" value="20000"/>\n', "")
+
+here = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "scenes")
+for name, body in (("rainbow.xml", text), ("rainbow-sky.xml", sky)):
+    out = os.path.join(here, name)
+    with open(out, "w") as f:
+        f.write(body)
+    print(f"wrote {os.path.normpath(out)}: {n_drops} drops")
+print(f"sun radius {sun_radius:.2f} at {SUN_DIST:g}, irradiance {sun_irradiance:.4f}")

@@ -1398,17 +1398,8 @@ mod tests {
     #[test]
     fn random_soup_with_spheres_and_disks() {
         let mut rng = Pcg32::new(3, 1);
+        let mut shapes = vec![shape(ShapeGeometry::Mesh(triangle_soup(&mut rng, 300, 0.6)))];
         let mut r3 = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-        let mut positions = vec![];
-        let mut triangles = vec![];
-        for i in 0..300u32 {
-            let c = r3() * 4.0 - 2.0;
-            for _ in 0..3 {
-                positions.push(c + (r3() - 0.5) * 0.6);
-            }
-            triangles.push([3 * i, 3 * i + 1, 3 * i + 2]);
-        }
-        let mut shapes = vec![shape(ShapeGeometry::Mesh(Mesh::new(positions, None, None, triangles, false)))];
         for _ in 0..10 {
             let c = r3() * 4.0 - 2.0;
             let radius = 0.05 + r3().x * 0.3;
@@ -1452,6 +1443,21 @@ mod tests {
 
     /// A random mesh with shared vertices, including degenerate triangles
     /// (repeated vertices, collinear vertices, zero area) and tiny ones.
+    /// `n` separate triangles of size about `size` scattered over
+    /// [-2, 2]³.
+    pub(super) fn triangle_soup(rng: &mut Pcg32, n: u32, size: f32) -> Mesh {
+        let mut r3 = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let (mut positions, mut triangles) = (vec![], vec![]);
+        for i in 0..n {
+            let c = r3() * 4.0 - 2.0;
+            for _ in 0..3 {
+                positions.push(c + (r3() - 0.5) * size);
+            }
+            triangles.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        Mesh::new(positions, None, None, triangles, false)
+    }
+
     pub(super) fn random_mesh(rng: &mut Pcg32, n_tris: usize, centre: Vec3) -> Mesh {
         let mut r3 = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
         let n_verts = n_tris / 2 + 3;

@@ -68,9 +68,8 @@ use crate::bsdf::{BsdfContext, Lobe};
 use crate::emitter::{EmitterSample, ShadingPoint};
 use crate::film::Sink;
 use crate::geometry::accel::Hit;
-use crate::geometry::ray::offset_origin;
 use crate::geometry::{Ray, SurfaceInteraction};
-use crate::math::{SHADOW_EPSILON, mis_power};
+use crate::math::mis_power;
 use crate::sampler::Sampler;
 use crate::scene::Scene;
 use crate::spectrum::{Rgb, Spectrum};
@@ -345,31 +344,6 @@ fn shade_hits<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Q
     std::mem::swap(&mut q.live, &mut q.next);
 }
 
-/// An emitter sample from `si` and the shadow ray that tests it, as
-/// `Scene::sample_emitter` takes them (selection included), before the
-/// shadow ray is traced. `None` if the emitter gives nothing.
-#[inline(always)]
-fn emitter_sample_ray<S: Spectrum>(scene: &Scene, si: &SurfaceInteraction, u: Vec2, wl: &S::Wavelengths) -> Option<(EmitterSample<S>, Ray)> {
-    let (index, pmf, ux) = scene.select_emitter(u.x, &ShadingPoint::from(si))?;
-    let mut sample = scene.emitters[index].sample_direct::<S>(scene, si.p, Vec2::new(ux, u.y), wl)?;
-    sample.weight = sample.weight / pmf;
-    sample.pdf *= pmf;
-    let o = si.spawn_origin(sample.d);
-    let ray = match sample.p {
-        Some(target) => {
-            let target = if sample.n != Vec3::ZERO { offset_origin(target, sample.n, -sample.d) } else { target };
-            let v = target - o;
-            let dist = v.length();
-            if dist <= 0.0 {
-                return None;
-            }
-            Ray { o, d: v / dist, tmax: dist * (1.0 - SHADOW_EPSILON) }
-        }
-        None => Ray { o, d: sample.d, tmax: f32::INFINITY },
-    };
-    Some((sample, ray))
-}
-
 /// Stage 3: next-event estimation for every live path at a smooth BSDF:
 /// emitter samples and shadow rays, the shadow rays traced as a stream,
 /// then the contributions. Also cuts the wavelengths down to the hero
@@ -387,7 +361,7 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
         }
         if bsdf.lobes().intersects(Lobe::SMOOTH) {
             let u = q.sampler[i].next_2d();
-            if let Some((es, ray)) = emitter_sample_ray::<S>(scene, si, u, &q.wl[i]) {
+            if let Some((es, ray)) = scene.sample_emitter_ray::<S>(si, u, &q.wl[i]) {
                 q.shadow_path.push(i as u32);
                 q.shadow_sample.push(es);
                 q.shadow_ray.push(ray);

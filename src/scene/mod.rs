@@ -282,11 +282,28 @@ impl Scene {
     /// was written in pieces and read back whole, a store-forwarding stall.)
     #[inline(always)]
     pub fn sample_emitter<S: Spectrum>(&self, si: &SurfaceInteraction, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
+        let (sample, ray) = self.sample_emitter_ray::<S>(si, u, wl)?;
+        let tr = self.transmittance(&ray);
+        if !(tr > 0.0) {
+            return None;
+        }
+        let mut sample = sample;
+        if tr < 1.0 {
+            sample.weight = sample.weight * tr;
+        }
+        Some(sample)
+    }
+
+    /// [`Scene::sample_emitter`]'s sample before visibility: the emitter
+    /// sample (selection included) and the shadow ray that tests it,
+    /// stopping just short of the emitter's surface. The batched path
+    /// tracer traces these rays together.
+    #[inline(always)]
+    pub fn sample_emitter_ray<S: Spectrum>(&self, si: &SurfaceInteraction, u: Vec2, wl: &S::Wavelengths) -> Option<(EmitterSample<S>, Ray)> {
         let (index, pmf, ux) = self.select_emitter(u.x, &ShadingPoint::from(si))?;
         let mut sample = self.emitters[index].sample_direct::<S>(self, si.p, Vec2::new(ux, u.y), wl)?;
         sample.weight = sample.weight / pmf;
         sample.pdf *= pmf;
-        // Shadow ray, stopping just short of the emitter's surface.
         let o = si.spawn_origin(sample.d);
         let ray = match sample.p {
             Some(target) => {
@@ -300,15 +317,7 @@ impl Scene {
             }
             None => Ray { o, d: sample.d, tmax: f32::INFINITY },
         };
-        let tr = self.transmittance(&ray);
-        if !(tr > 0.0) {
-            return None;
-        }
-        let mut sample = sample;
-        if tr < 1.0 {
-            sample.weight = sample.weight * tr;
-        }
-        Some(sample)
+        Some((sample, ray))
     }
 
     /// Starts a light path (particle tracing): picks an emitter (uniformly

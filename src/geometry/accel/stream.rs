@@ -257,8 +257,8 @@ fn slab_constants(ray: &Ray) -> (Vec3A, Vec3A, Vec3A) {
 
 #[cfg(test)]
 mod tests {
+    use super::super::tests::{shape, triangle_soup};
     use super::super::{Accel, SimdLevel};
-    use crate::geometry::mesh::Mesh;
     use crate::geometry::shape::{Shape, ShapeGeometry};
     use crate::geometry::sphere::Sphere;
     use crate::geometry::Ray;
@@ -266,25 +266,13 @@ mod tests {
     use crate::math::{Pcg32, Transform};
     use glam::{Vec2, Vec3};
 
-    fn shape(geometry: ShapeGeometry) -> Shape {
-        Shape { geometry, bsdf: 0, emitter: None, tangent_frame: false, pass_through: false }
-    }
-
     /// Random triangles and spheres, and random rays among them: short and
     /// infinite, axis-parallel, and bundles converging on one point (as
     /// shadow rays to a small light).
     fn scene(seed: u64) -> (Vec<Shape>, Vec<Ray>) {
         let mut rng = Pcg32::new(seed, 3);
+        let mut shapes = vec![shape(ShapeGeometry::Mesh(triangle_soup(&mut rng, 1500, 0.7)))];
         let mut r3 = || Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
-        let (mut positions, mut triangles) = (vec![], vec![]);
-        for i in 0..1500u32 {
-            let c = r3() * 4.0 - 2.0;
-            for _ in 0..3 {
-                positions.push(c + (r3() - 0.5) * 0.7);
-            }
-            triangles.push([3 * i, 3 * i + 1, 3 * i + 2]);
-        }
-        let mut shapes = vec![shape(ShapeGeometry::Mesh(Mesh::new(positions, None, None, triangles, false)))];
         for _ in 0..6 {
             let center = r3() * 4.0 - 2.0;
             shapes.push(shape(ShapeGeometry::Sphere(Sphere { center, radius: 0.2, to_object: Transform::IDENTITY, flip_normals: false })));
