@@ -426,7 +426,7 @@ impl Bsdf {
         u2: Vec2,
         wl: &S::Wavelengths,
     ) -> Option<BsdfSample<S>> {
-        dispatch!(self, b => b.sample::<S>(ctx, si, wi, u1, u2, wl))
+        self.sample_inline::<S>(ctx, si, wi, u1, u2, wl)
     }
 
     /// [`Bsdf::sample`] always inlined, for the path tracer's bounce loop:

@@ -1175,36 +1175,8 @@ impl Accel {
                     }
                     continue;
                 }
-            } else if cur & DIRECT != 0 {
-                let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
-                let p = if self.keeps_packets() {
-                    self.lanes_at::<V>(first)
-                } else {
-                    let m = &self.meshes[self.direct as usize];
-                    gather_run::<V>(&m.positions, &m.triangles[first..first + n])
-                };
-                if r.triangles(&p, tmax).1 & lanes_of(n) != 0 {
-                    return true;
-                }
-            } else {
-                let leaf = &self.leaves[(cur & !LEAF) as usize];
-                for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
-                    let first = leaf.tri_start as usize + k * PACKET;
-                    if r.triangles(&self.packet::<V>(first, refs), tmax).1 & lanes_of(refs.len()) != 0 {
-                        return true;
-                    }
-                }
-                for oi in leaf.other_start..leaf.other_end {
-                    let g = &self.others[oi as usize];
-                    if let (true, PrimGeom::Instance(i)) = (INSTANCES, g) {
-                        let (group, local) = self.instance_ray(*i, ray, tmax);
-                        if group.group_any_hit::<V>(&local) {
-                            return true;
-                        }
-                    } else if intersect_prim_bary(g, r.o, r.d, tmax).0 < tmax {
-                        return true;
-                    }
-                }
+            } else if self.leaf_occludes::<INSTANCES, V>(cur, &r, ray, tmax) {
+                return true;
             }
             if sp == 0 {
                 return false;
@@ -1213,6 +1185,42 @@ impl Accel {
             // SAFETY: entries below `sp` were written before.
             cur = unsafe { stack[sp].assume_init() };
         }
+    }
+
+    /// Whether anything in leaf `cur` (a child word with `LEAF` set) lies on
+    /// `ray` (lanes `r`) before `tmax`; instances are traced into their
+    /// groups when `INSTANCES`. Shared by the single-ray and packet any-hits.
+    #[inline(always)]
+    fn leaf_occludes<const INSTANCES: bool, V: Lanes>(&self, cur: u32, r: &RayData<V>, ray: &Ray, tmax: f32) -> bool {
+        if cur & DIRECT != 0 {
+            let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
+            let p = if self.keeps_packets() {
+                self.lanes_at::<V>(first)
+            } else {
+                let m = &self.meshes[self.direct as usize];
+                gather_run::<V>(&m.positions, &m.triangles[first..first + n])
+            };
+            return r.triangles(&p, tmax).1 & lanes_of(n) != 0;
+        }
+        let leaf = &self.leaves[(cur & !LEAF) as usize];
+        for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
+            let first = leaf.tri_start as usize + k * PACKET;
+            if r.triangles(&self.packet::<V>(first, refs), tmax).1 & lanes_of(refs.len()) != 0 {
+                return true;
+            }
+        }
+        for oi in leaf.other_start..leaf.other_end {
+            let g = &self.others[oi as usize];
+            if let (true, PrimGeom::Instance(i)) = (INSTANCES, g) {
+                let (group, local) = self.instance_ray(*i, ray, tmax);
+                if group.group_any_hit::<V>(&local) {
+                    return true;
+                }
+            } else if intersect_prim_bary(g, r.o, r.d, tmax).0 < tmax {
+                return true;
+            }
+        }
+        false
     }
 
     /// Bounding box of everything (min, max); a unit box around the origin when empty.

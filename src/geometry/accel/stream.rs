@@ -21,7 +21,7 @@
 //! the single-ray queries. Scenes with instances take the single-ray
 //! traversal for occlusion too.
 
-use super::{Accel, DIRECT, Hit, LEAF, Lanes, PACKET, PrimGeom, RayData, STACK, WIDTH, intersect_prim_bary, lanes_of};
+use super::{Accel, Hit, LEAF, Lanes, RayData, STACK, WIDTH, lanes_of};
 #[cfg(target_arch = "x86_64")]
 use super::Avx;
 use super::{Portable, SimdLevel};
@@ -186,7 +186,7 @@ impl Accel {
                 while m != 0 {
                     let k = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    if blocked & (1 << k) == 0 && self.leaf_blocks(cur, &RayData::<V>::new(&rays[k]), rays[k].tmax) {
+                    if blocked & (1 << k) == 0 && self.leaf_occludes::<false, V>(cur, &RayData::<V>::new(&rays[k]), &rays[k], rays[k].tmax) {
                         blocked |= 1 << k;
                     }
                 }
@@ -208,36 +208,6 @@ impl Accel {
                 }
             }
         }
-    }
-
-    /// Whether the leaf coded `cur` holds something on the ray `r` before
-    /// `tmax` (a BVH without instances).
-    #[inline(always)]
-    fn leaf_blocks<V: Lanes>(&self, cur: u32, r: &RayData<V>, tmax: f32) -> bool {
-        if cur & DIRECT != 0 {
-            let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
-            let p = if self.keeps_packets() {
-                self.lanes_at::<V>(first)
-            } else {
-                let m = &self.meshes[self.direct as usize];
-                super::gather_run::<V>(&m.positions, &m.triangles[first..first + n])
-            };
-            return r.triangles(&p, tmax).1 & lanes_of(n) != 0;
-        }
-        let leaf = &self.leaves[(cur & !LEAF) as usize];
-        for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
-            let first = leaf.tri_start as usize + k * PACKET;
-            if r.triangles(&self.packet::<V>(first, refs), tmax).1 & lanes_of(refs.len()) != 0 {
-                return true;
-            }
-        }
-        for oi in leaf.other_start..leaf.other_end {
-            let g: &PrimGeom = &self.others[oi as usize];
-            if intersect_prim_bary(g, r.o, r.d, tmax).0 < tmax {
-                return true;
-            }
-        }
-        false
     }
 }
 
