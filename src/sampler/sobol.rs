@@ -22,6 +22,7 @@
 //! 1-D draw is the scrambled van der Corput point.
 
 use super::{SampleId, dim_hash, permute, unit};
+#[cfg(test)]
 use crate::math::rng::mix64;
 use glam::Vec2;
 
@@ -56,6 +57,12 @@ pub(crate) fn sobol0(index: u64) -> u32 {
 /// Pascal matrix mod 2 is the 6-fold Kronecker power of [[1,1],[0,1]]).
 #[inline]
 pub(crate) fn sobol1(index: u64) -> u32 {
+    sobol1_reversed(index).reverse_bits()
+}
+
+/// [`sobol1`] with its bits reversed (the fraction's top bit as bit 0).
+#[inline]
+pub(crate) fn sobol1_reversed(index: u64) -> u32 {
     let mut z = index;
     z ^= (z >> 1) & 0x5555_5555_5555_5555;
     z ^= (z >> 2) & 0x3333_3333_3333_3333;
@@ -63,7 +70,7 @@ pub(crate) fn sobol1(index: u64) -> u32 {
     z ^= (z >> 8) & 0x00ff_00ff_00ff_00ff;
     z ^= (z >> 16) & 0x0000_ffff_0000_ffff;
     z ^= z >> 32;
-    (z as u32).reverse_bits()
+    z as u32
 }
 
 /// [`sobol1`] by the matrix's columns, one per index bit (the definition;
@@ -87,13 +94,19 @@ fn sobol1_by_columns(mut index: u64) -> u32 {
 /// by a function of the seed and the bits above it only).
 #[inline]
 pub(crate) fn owen_scramble(x: u32, seed: u32) -> u32 {
-    let mut v = x.reverse_bits();
+    laine_karras(x.reverse_bits(), seed).reverse_bits()
+}
+
+/// The scramble of [`owen_scramble`] on bit-reversed input and output:
+/// each bit flipped by a function of the seed and the bits below it.
+#[inline]
+pub(crate) fn laine_karras(mut v: u32, seed: u32) -> u32 {
     v = v.wrapping_add(seed);
     v ^= v.wrapping_mul(0x6c50_b47c);
     v ^= v.wrapping_mul(0xb82f_1e52);
     v ^= v.wrapping_mul(0xc7af_e638);
     v ^= v.wrapping_mul(0x8d22_f6e6);
-    v.reverse_bits()
+    v
 }
 
 pub(crate) struct Sobol {
@@ -112,7 +125,8 @@ impl Sobol {
         // The permutation seed and two scramble seeds from the draw's hash.
         let h = dim_hash(self.id.pixel_seed, self.dim);
         let i = permute(self.id.index, self.id.count, h as u32);
-        let g = mix64(h);
+        // The scramble seeds from the same hash (an odd multiplier is a bijection).
+        let g = (h ^ (h >> 32)).wrapping_mul(0xd6e8_feb8_6659_fd93);
         self.dim += 1;
         (i as u64, g as u32, (g >> 32) as u32)
     }
