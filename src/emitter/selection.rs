@@ -246,6 +246,23 @@ fn sqrt4(v: Vec4) -> Vec4 {
     v.sqrt()
 }
 
+/// Lane-wise 1/√v: the SSE estimate refined by one Newton step (about 22
+/// bits, against the 24 of a division; selection and its pmf use the same
+/// arithmetic, so they agree exactly). Lanes where v is 0 are not finite
+/// (the caller masks them).
+#[inline(always)]
+fn rsqrt4(v: Vec4) -> Vec4 {
+    #[cfg(all(target_arch = "x86_64", target_feature = "sse"))]
+    #[allow(unused_unsafe)]
+    // SAFETY: SSE is enabled at compile time (checked by the cfg above).
+    {
+        let y = unsafe { Vec4::from(core::arch::x86_64::_mm_rsqrt_ps(v.into())) };
+        return y * (Vec4::splat(1.5) - Vec4::splat(0.5) * v * y * y);
+    }
+    #[allow(unreachable_code)]
+    (Vec4::ONE / v.sqrt())
+}
+
 impl Node4 {
     fn empty() -> Node4 {
         Node4 {
@@ -302,7 +319,7 @@ impl Node4 {
         // the cone's axis, reduced by the cone and by the angle θ_b the
         // bounding sphere subtends. (Meaningless inside the bounding
         // sphere, where the lane takes 1 below.)
-        let inv_dist = one / sqrt4(dc2);
+        let inv_dist = rsqrt4(dc2);
         let cos_w = ((self.wx * vx + self.wy * vy + self.wz * vz) * inv_dist).max(-one).min(one);
         let sin_w = sqrt4((one - cos_w * cos_w).max(zero));
         let sin_b = (self.r * inv_dist).min(one);
