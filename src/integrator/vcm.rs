@@ -783,7 +783,7 @@ pub(crate) fn render_range<S: Spectrum>(
     bar: &ProgressBar,
 ) -> anyhow::Result<(u64, u64)> {
     if S::POLARIZED {
-        anyhow::bail!("the vcm integrator renders in the rgb mode only, not in a polarized mode; use path for polarization");
+        anyhow::bail!("the vcm integrator renders in the rgb and spectral modes only, not in a polarized mode; use path for polarization");
     }
     let crate::sensor::Camera::Perspective(camera) = &scene.camera else {
         anyhow::bail!("vcm needs a perspective sensor");
