@@ -72,7 +72,7 @@ pub fn prepare(scene: &Scene, mode: Mode, what: &str) -> anyhow::Result<()> {
         anyhow::bail!("{what}: the polarized modes need a camera-path integrator (path or direct); bdpt renders in the rgb and spectral modes only");
     }
     if mode.polarized() && matches!(scene.integrator, Integrator::Vcm(_)) {
-        anyhow::bail!("{what}: the polarized modes need a camera-path integrator (path or direct); vcm renders in the rgb mode only");
+        anyhow::bail!("{what}: the polarized modes need a camera-path integrator (path or direct); vcm renders in the rgb and spectral modes only");
     }
     if mode.polarized() && matches!(scene.integrator, Integrator::Sppm(_)) {
         anyhow::bail!("{what}: the polarized modes need a camera-path integrator (path or direct); photon mapping (sppm) does not carry polarization");

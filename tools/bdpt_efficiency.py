@@ -20,7 +20,7 @@ reference long.
 
 Usage: python3 tools/bdpt_efficiency.py --scene scenes/caustic-cornell-box.xml
            [--res 64 --res 128] [--threads 2] [--ref-spp 16384] [--ref-method path] [--spp 64]
-           [--runs 3] [--max-depth N] [-D key=value ...] [--ref-pfm FILE]
+           [--runs 3] [--max-depth N] [-D key=value ...] [--ref-pfm FILE] [--render-mode rgb|spectral]
        python3 tools/bdpt_efficiency.py --method vcm [--mode vcm|bpt|ppm] [--extra XML] ...
            (--spp is then vcm's iterations)
 """
@@ -51,7 +51,8 @@ def variant(args, integrator, name):
 def render(args, scene, res, spp, seed, out):
     stats = f"/tmp/bdpt-eff-{args.tag}-stats.json"
     cmd = [args.snell, "render", scene, "-o", out, "--spp", str(spp), "--seed", str(seed),
-           "--threads", str(args.threads), "--stats", stats, "--quiet", "-D", f"res={res}"]
+           "--threads", str(args.threads), "--stats", stats, "--quiet", "-D", f"res={res}",
+           "--mode", args.render_mode]
     for kv in args.defines:
         cmd += ["-D", kv]
     before = os.times()
@@ -90,6 +91,8 @@ def main():
                     help="the reference's integrator (bdpt for scenes whose path reference keeps fireflies)")
     ap.add_argument("--method", choices=["bdpt", "vcm"], default="bdpt", help="the method measured against path")
     ap.add_argument("--mode", choices=["vcm", "bpt", "ppm"], default="vcm", help="vcm's mode (--method vcm)")
+    ap.add_argument("--render-mode", choices=["rgb", "spectral"], default="rgb",
+                    help="what the paths carry (snell's --mode), for every render including the reference")
     ap.add_argument("--extra", default="", help="more parameters of the method, as XML")
     ap.add_argument("--spp", type=int, default=64, help="the method's samples per pixel (vcm: iterations)")
     ap.add_argument("--max-depth", default="$max_depth")

@@ -266,9 +266,9 @@ impl Grid {
 
     #[inline]
     fn cell(&self, p: Vec3) -> [i32; 3] {
-        let c = ((p - self.origin) * self.inv_cell).floor();
+        let c = (p - self.origin) * self.inv_cell;
         // `as` saturates: far-away points share the border cells.
-        [c.x as i32, c.y as i32, c.z as i32]
+        [floor_i32(c.x), floor_i32(c.y), floor_i32(c.z)]
     }
 
     /// The visible points that may lie within their radius of `p`.
@@ -277,6 +277,14 @@ impl Grid {
         let b = hash_cell(self.cell(p), self.starts.len() - 1);
         &self.items[self.starts[b] as usize..self.starts[b + 1] as usize]
     }
+}
+
+/// `x.floor() as i32` (saturating, NaN to 0) without a call to the C
+/// library's `floorf` (which the default x86-64 target makes of `floor`).
+#[inline]
+pub(crate) fn floor_i32(x: f32) -> i32 {
+    let i = x as i32;
+    i.saturating_sub((x < i as f32) as i32)
 }
 
 #[inline]
@@ -609,6 +617,18 @@ fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
     (0.5 * (lo + hi), 0.5 * (hi - lo).length())
 }
 
+#[cfg(test)]
+mod tests {
+    use super::floor_i32;
+
+    #[test]
+    fn floor_i32_is_floor_as_i32() {
+        for x in [0.0f32, -0.0, 0.5, -0.5, 1.0, -1.0, 2.999, -2.999, 1e9, -1e9, 3e9, -3e9, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 8388607.5, -8388607.5] {
+            assert_eq!(floor_i32(x), x.floor() as i32, "{x}");
+        }
+    }
+}
+
 /// One iteration's photon sums per pixel.
 struct Sums {
     phi: Vec<[AtomicI64; 3]>,
@@ -683,7 +703,7 @@ pub fn render<S: Spectrum>(
                 + (mix64(scene.sampler.seed) >> 11) as f64 / (1u64 << 53) as f64)
                 % 1.0) as f32;
             let wl = S::sample_wavelengths(u.min(1.0 - f32::EPSILON));
-            let camera: Vec<(Rgb, Option<VisiblePoint<S>>)> = pool.install(|| {
+            let (direct, points): (Vec<Rgb>, Vec<Option<VisiblePoint<S>>>) = pool.install(|| {
                 (0..pixels)
                     .into_par_iter()
                     .with_min_len(64)
@@ -696,10 +716,8 @@ pub fn render<S: Spectrum>(
                             wl,
                         )
                     })
-                    .collect()
+                    .unzip()
             });
-            let (direct, points): (Vec<Rgb>, Vec<Option<VisiblePoint<S>>>) =
-                camera.into_iter().unzip();
             if let Some((offset, spread)) = footprint {
                 for (st, vp) in stats.iter_mut().zip(&points) {
                     if let (0.0, Some(vp)) = (st.radius, vp) {

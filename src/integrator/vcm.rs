@@ -65,10 +65,14 @@
 //! </integrator>
 //! ```
 //!
-//! Limits: the `rgb` mode only (the spectral and polarized modes are
-//! refused: a merge needs the camera and light subpaths of one iteration to
-//! carry the same wavelengths, and hero-wavelength dispersion is not
-//! done); a `perspective` sensor; no `projector` emitter; the whole crop
+//! Modes `rgb` and `spectral`: in spectral mode all subpaths of an
+//! iteration carry its wavelengths (a stratified sequence over the
+//! iterations, as `sppm`'s), so that a merge or a connection joins
+//! subpaths of the same wavelengths; a subpath (camera or light) that
+//! passes a dispersive interface keeps its hero wavelength alone
+//! ([`Spectrum::terminate_secondary`]), and so does every connection or
+//! merge with a light subpath that did. The polarized modes are refused.
+//! Limits: a `perspective` sensor; no `projector` emitter; the whole crop
 //! window at once (no tiles). Deterministic: the image depends on the
 //! scene, the seed and the sample count only — identical for any thread
 //! count and pass split, and a render can be resumed (the radius is a
@@ -81,6 +85,8 @@ use crate::geometry::{Ray, SurfaceInteraction};
 use crate::integrator::bdpt::{camera_pdf, emission_pdf, other, transmittance};
 use crate::integrator::path::escaped_weight;
 use crate::integrator::ptracer::shading_correction;
+use crate::integrator::sppm::floor_i32;
+use crate::math::rng::mix64;
 use crate::render::RenderOptions;
 use crate::sampler::{Sampler, SamplerKind, SamplerSpec};
 use crate::scene::Scene;
@@ -145,6 +151,9 @@ struct LightVertex<S> {
     beta: S,
     /// Segments from the emitter.
     length: u32,
+    /// The subpath passed a dispersive interface: it holds for the hero
+    /// wavelength only (spectral mode).
+    dispersed: bool,
     d_vcm: f32,
     d_vc: f32,
     d_vm: f32,
@@ -272,8 +281,8 @@ impl Grid {
     }
 
     fn cell_of(&self, p: Vec3) -> [i32; 3] {
-        let c = (p / self.cell).floor();
-        [c.x as i32, c.y as i32, c.z as i32]
+        let c = p / self.cell;
+        [floor_i32(c.x), floor_i32(c.y), floor_i32(c.z)]
     }
 
     fn bucket(&self, c: [i32; 3]) -> usize {
@@ -371,6 +380,8 @@ impl Vcm {
     ) {
         let scene = c.scene;
         let mut sampler = Sampler::start(spec, index, k, 0);
+        let (mut wl, mut dispersed) = (*wl, false);
+        let wl = &mut wl;
         let Some((e, pmf)) = c.select(sampler.next_1d()) else { return };
         let (u_pos, u_dir) = (sampler.next_2d(), sampler.next_2d());
         let emitter = &scene.emitters[e];
@@ -398,8 +409,14 @@ impl Vcm {
             }
             m.arrive((si.p - prev).length_squared(), cos_in);
             let bsdf = scene.bsdf(&si);
+            // Past a dispersive interface the subpath holds for the hero wavelength only.
+            if bsdf.disperses() {
+                S::terminate_secondary(wl);
+                // (RGB mode has no secondary wavelengths: nothing to keep apart.)
+                dispersed = S::hero_wavelength(wl).is_some();
+            }
             if bsdf.lobes().intersects(Lobe::SMOOTH) && length < self.max_depth {
-                let v = LightVertex { si, ctx, beta, length, d_vcm: m.d_vcm, d_vc: m.d_vc, d_vm: m.d_vm };
+                let v = LightVertex { si, ctx, beta, length, dispersed, d_vcm: m.d_vcm, d_vc: m.d_vc, d_vm: m.d_vm };
                 if it.use_vc {
                     if let Some(s) = self.connect_camera(c, it, &v, wl) {
                         splats.push(s);
@@ -463,6 +480,10 @@ impl Vcm {
     }
 
     /// The camera subpath through `ray`: the pixel's estimate and alpha.
+    /// In spectral mode the estimate is made of two parts: the light that
+    /// holds for all of the path's wavelengths, and the light of
+    /// connections and merges with light subpaths that passed a dispersive
+    /// interface (for the hero wavelength only), converted to RGB apart.
     #[allow(clippy::too_many_arguments)]
     fn camera_path<S: Spectrum>(
         &self,
@@ -474,12 +495,15 @@ impl Vcm {
         light: &[LightVertex<S>],
         all: &[LightVertex<S>],
         grid: Option<&Grid>,
-    ) -> (S, f32) {
+    ) -> (Rgb, f32) {
         let scene = c.scene;
         let mut result = S::zero();
+        // Light of connections and merges with dispersed light subpaths.
+        let mut hero = S::zero();
+        let mut wl = *wl;
         let pc = camera_pdf(c.camera, ray.d) * it.n_camera;
         if !(pc > 0.0) {
-            return (result, 0.0);
+            return (Rgb::zero(), 0.0);
         }
         let mut m = Mis { d_vcm: mis(it.n_light / pc), d_vc: 0.0, d_vm: 0.0 };
         let mut ray = ray;
@@ -494,7 +518,7 @@ impl Vcm {
         let mut alpha = 0.0;
         loop {
             let Some(si) = scene.intersect_path(&ray, false, sampler) else {
-                if let Some(le) = scene.environment_radiance::<S>(ray.d, wl) {
+                if let Some(le) = scene.environment_radiance::<S>(ray.d, &wl) {
                     let w = if length == 0 || (!it.use_vc && specular) {
                         1.0
                     } else if it.use_vc {
@@ -518,7 +542,7 @@ impl Vcm {
                 break;
             }
             m.arrive((si.p - prev).length_squared(), cos_in);
-            if let Some(le) = scene.emitted::<S>(&si, wl) {
+            if let Some(le) = scene.emitted::<S>(&si, &wl) {
                 if !le.is_zero() {
                     let w = if length == 1 || (!it.use_vc && specular) {
                         1.0
@@ -537,17 +561,29 @@ impl Vcm {
                 break;
             }
             let bsdf = scene.bsdf(&si);
+            // Past a dispersive interface the subpath holds for the hero wavelength only.
+            if bsdf.disperses() {
+                S::terminate_secondary(&mut wl);
+            }
+            let wl = &wl;
             if bsdf.lobes().intersects(Lobe::SMOOTH) {
                 if it.use_vc {
                     result += self.next_event(c, it, &si, &ctx, beta, &m, sampler, wl);
                     for v in light {
                         if v.length + 1 + length <= self.max_depth {
-                            result += self.connect(c, it, &si, &ctx, beta, &m, v, wl);
+                            let x = self.connect(c, it, &si, &ctx, beta, &m, v, wl);
+                            if v.dispersed {
+                                hero += x;
+                            } else {
+                                result += x;
+                            }
                         }
                     }
                 }
                 if let (true, Some(grid)) = (it.use_vm, grid) {
-                    result += self.merge(c, it, &si, &ctx, beta, &m, length, all, grid, wl);
+                    let (x, h) = self.merge(c, it, &si, &ctx, beta, &m, length, all, grid, wl);
+                    result += x;
+                    hero += h;
                 }
             }
             let Some(bs) = bsdf.sample::<S>(&ctx, &si, si.wi, sampler.next_1d(), sampler.next_2d(), wl) else { break };
@@ -580,7 +616,12 @@ impl Vcm {
                 beta *= 1.0 / q;
             }
         }
-        (result, alpha)
+        let mut rgb = result.to_rgb(&wl);
+        if !hero.is_zero() {
+            S::terminate_secondary(&mut wl);
+            rgb += hero.to_rgb(&wl);
+        }
+        (rgb, alpha)
     }
 
     /// Next-event estimation at camera vertex `si`.
@@ -667,7 +708,9 @@ impl Vcm {
     }
 
     /// Camera vertex `si` (`length` segments from the pinhole) merged with
-    /// the light vertices within the radius.
+    /// the light vertices within the radius: the light of the subpaths that
+    /// hold for all wavelengths, and of those that passed a dispersive
+    /// interface (hero wavelength only).
     #[allow(clippy::too_many_arguments)]
     fn merge<S: Spectrum>(
         &self,
@@ -681,11 +724,11 @@ impl Vcm {
         all: &[LightVertex<S>],
         grid: &Grid,
         wl: &S::Wavelengths,
-    ) -> S {
+    ) -> (S, S) {
         let scene = c.scene;
         let bsdf = scene.bsdf(si);
         let r2 = it.radius * it.radius;
-        let mut sum = S::zero();
+        let (mut sum, mut hero) = (S::zero(), S::zero());
         grid.near(si.p, |i| {
             let v = &all[i as usize];
             if (v.si.p - si.p).length_squared() >= r2 || v.length + length > self.max_depth {
@@ -712,9 +755,14 @@ impl Vcm {
             } else {
                 1.0
             };
-            sum += f * v.beta * (w / cos);
+            let x = f * v.beta * (w / cos);
+            if v.dispersed {
+                hero += x;
+            } else {
+                sum += x;
+            }
         });
-        beta * sum * it.vm_norm
+        (beta * sum * it.vm_norm, beta * hero * it.vm_norm)
     }
 }
 
@@ -735,10 +783,7 @@ pub(crate) fn render_range<S: Spectrum>(
     bar: &ProgressBar,
 ) -> anyhow::Result<(u64, u64)> {
     if S::POLARIZED {
-        anyhow::bail!("the vcm integrator renders in the rgb mode only, not in a polarized mode; use path for polarization");
-    }
-    if S::hero_wavelength(&S::sample_wavelengths(0.5)).is_some() {
-        anyhow::bail!("the vcm integrator renders in the rgb mode only (spectral merging and dispersion are not implemented); use bdpt or sppm in the spectral mode");
+        anyhow::bail!("the vcm integrator renders in the rgb and spectral modes only, not in a polarized mode; use path for polarization");
     }
     let crate::sensor::Camera::Perspective(camera) = &scene.camera else {
         anyhow::bail!("vcm needs a perspective sensor");
@@ -764,15 +809,20 @@ pub(crate) fn render_range<S: Spectrum>(
     let mass = (window_filter_mass(&scene.film.filter, w), window_filter_mass(&scene.film.filter, h));
     let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
     let (mut taken, mut invalid) = (0u64, 0u64);
-    let wl = S::sample_wavelengths(0.5);
     const CHUNK: u32 = 256;
     for k in samples.clone() {
         if options.stopped() {
             break;
         }
+        // The iteration's wavelengths, shared by its light and camera
+        // subpaths (a merge needs both at the same ones): a stratified
+        // sequence over the iterations, a function of the seed and k only.
+        let u = ((k as f64 * 0.618_033_988_749_894_9 + (mix64(scene.sampler.seed ^ 0x7663_6d77) >> 11) as f64 / (1u64 << 53) as f64) % 1.0) as f32;
+        let wl = S::sample_wavelengths(u.min(1.0 - f32::EPSILON));
         let it = vcm.iteration(scene, r0, k, n_light);
         // Light subpaths, in chunks collected in index order.
-        let chunks: Vec<(Vec<LightVertex<S>>, Vec<u32>, Vec<(Vec2, Rgb)>)> = pool.install(|| {
+        type Chunk<S> = (Vec<LightVertex<S>>, Vec<u32>, Vec<(Vec2, Rgb)>);
+        let chunks: Vec<Chunk<S>> = pool.install(|| {
             (0..n_light.div_ceil(CHUNK))
                 .into_par_iter()
                 .map(|ch| {
@@ -786,23 +836,37 @@ pub(crate) fn render_range<S: Spectrum>(
                 .collect()
         });
         let mut all = Vec::with_capacity(chunks.iter().map(|ch| ch.0.len()).sum());
+        let mut splats = Vec::with_capacity(chunks.iter().map(|ch| ch.2.len()).sum());
         let mut starts = vec![0u32];
-        let mut sink = Sink::new(&state.header.layout, -border, -border, (w as i32 + 2 * border) as usize, (h as i32 + 2 * border) as usize);
-        for (verts, ends, splats) in chunks {
+        for (verts, ends, s) in chunks {
             let base = all.len() as u32;
             starts.extend(ends.iter().map(|e| base + e));
             all.extend(verts);
-            for (p, rgb) in splats {
-                if rgb.is_finite() {
-                    sink.splat_in_window(&scene.film.filter, p - offset, rgb, &mass.0, &mass.1);
-                } else {
-                    invalid += 1;
-                }
-            }
+            splats.extend(s);
         }
-        state.add_sink(&sink);
         let grid = it.use_vm.then(|| Grid::build(&all, it.radius));
         let (all, starts, grid, it, c) = (&all, &starts, grid.as_ref(), &it, &c);
+        // The light subpaths' camera connections: each worker splats an
+        // equal share into its own sink (fixed-point sums: the image does
+        // not depend on the split).
+        let layout = &state.header.layout;
+        let sinks: Vec<(Sink, u64)> = pool.broadcast(|b| {
+            let (n, m) = (splats.len(), b.num_threads());
+            let mut sink = Sink::new(layout, -border, -border, (w as i32 + 2 * border) as usize, (h as i32 + 2 * border) as usize);
+            let mut bad = 0u64;
+            for &(p, value) in &splats[n * b.index() / m..n * (b.index() + 1) / m] {
+                if value.is_finite() {
+                    sink.splat_in_window(&scene.film.filter, p - offset, value, &mass.0, &mass.1);
+                } else {
+                    bad += 1;
+                }
+            }
+            (sink, bad)
+        });
+        for (sink, bad) in &sinks {
+            state.add_sink(sink);
+            invalid += bad;
+        }
         let init = || vec![0.0f32; n_extra];
         let (t, bad) = crate::render::render_splatting(scene, options, pool, &(k..k + 1), rect, state, bar, init, |extra, x, y, index, sink, bad| {
             let mut sampler = Sampler::start(&scene.sampler, x, y, index);
@@ -811,8 +875,7 @@ pub(crate) fn render_range<S: Spectrum>(
             let ray = scene.camera.sample_ray((pos + offset) * inv_size, &mut sampler);
             let i = ((y as u64 * scene.film.width as u64 + x as u64) % n_light as u64) as usize;
             let light = &all[starts[i] as usize..starts[i + 1] as usize];
-            let (l, a) = vcm.camera_path::<S>(c, it, ray, &mut sampler, &wl, light, all, grid);
-            let mut rgb = l.to_rgb(&wl);
+            let (mut rgb, a) = vcm.camera_path::<S>(c, it, ray, &mut sampler, &wl, light, all, grid);
             if !rgb.is_finite() {
                 *bad += 1;
                 rgb = Rgb::BLACK;
