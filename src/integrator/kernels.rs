@@ -19,6 +19,7 @@
 //! | kernel | replaces | lanes |
 //! |---|---|---|
 //! | [`area_light_directions`] | `AreaLight::sample_direct` by area on a mesh light without vertex normals or texture (`Mesh::sample_position`, `PositionSample::towards`), then `Scene::sample_emitter_ray`'s shadow ray | paths at a smooth BSDF that picked such a light |
+//! | [`diffuse_directions`] | `Diffuse::sample`'s direction and density (`square_to_cosine_hemisphere`), `Frame::to_world`, `SurfaceInteraction::spawn_origin` | paths at a `diffuse` BSDF lit from its front side |
 
 use crate::geometry::accel::SimdLevel;
 use crate::math::{RAY_EPSILON, SHADOW_EPSILON};
@@ -148,6 +149,91 @@ fn area_body(chunks: &mut [AreaChunk]) {
             ch.pdf[k] = pdf;
             ch.tmax[k] = len * (1.0 - SHADOW_EPSILON);
             ch.ok[k] = ok_dist & ok_cos & ok_light & ok_ray;
+        }
+    }
+}
+
+/// One chunk of diffuse (Lambertian) BSDF samples: inputs (the 2-D sample,
+/// the shading frame s, t, n, the point and its geometric normal) and
+/// outputs (the cosine-weighted direction in world space, its density,
+/// the next ray's origin, and whether the sample stands). The caller has
+/// checked `wi.z > 0` and the context.
+#[derive(Clone, Copy, Default)]
+pub struct DiffuseChunk {
+    pub u: [[f32; LANES]; 2],
+    pub s: [[f32; LANES]; 3],
+    pub t: [[f32; LANES]; 3],
+    pub fn_: [[f32; LANES]; 3],
+    pub p: [[f32; LANES]; 3],
+    pub n: [[f32; LANES]; 3],
+    // Outputs.
+    pub d: [[f32; LANES]; 3],
+    pub pdf: [f32; LANES],
+    pub o: [[f32; LANES]; 3],
+    pub ok: [bool; LANES],
+}
+
+/// Cosine-weighted directions for the lanes of `chunks`: what
+/// `Diffuse::sample` (`square_to_cosine_hemisphere` with its concentric
+/// disk and `sin_cos_quarter`, `cosine_hemisphere_pdf`), `Frame::to_world`
+/// and `SurfaceInteraction::spawn_origin` compute.
+pub fn diffuse_directions(level: SimdLevel, chunks: &mut [DiffuseChunk]) {
+    match level {
+        // SAFETY: the accelerator's level is one the CPU supports.
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx512 => unsafe { diffuse_avx512(chunks) },
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx2 => unsafe { diffuse_avx2(chunks) },
+        _ => diffuse_body(chunks),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,bmi1,bmi2,popcnt,lzcnt")]
+unsafe fn diffuse_avx512(chunks: &mut [DiffuseChunk]) {
+    diffuse_body(chunks)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,bmi1,bmi2,popcnt,lzcnt")]
+unsafe fn diffuse_avx2(chunks: &mut [DiffuseChunk]) {
+    diffuse_body(chunks)
+}
+
+#[inline(always)]
+fn diffuse_body(chunks: &mut [DiffuseChunk]) {
+    use crate::math::{INV_PI, PI};
+    for ch in chunks.iter_mut() {
+        for k in 0..LANES {
+            // square_to_uniform_disk_concentric: one of its two branches,
+            // chosen per lane (the same division and polynomial).
+            let x = 2.0 * ch.u[0][k] - 1.0;
+            let y = 2.0 * ch.u[1][k] - 1.0;
+            let zero = x == 0.0 && y == 0.0;
+            let wide = x.abs() > y.abs();
+            let (num, den) = if wide { (y, x) } else { (x, y) };
+            let (s, c) = crate::math::trig::sin_cos_quarter((PI / 4.0) * (num / den));
+            let (dx, dy) = if wide { (x * c, x * s) } else { (y * s, y * c) };
+            let (dx, dy) = if zero { (0.0, 0.0) } else { (dx, dy) };
+            // square_to_cosine_hemisphere, cosine_hemisphere_pdf.
+            let z = (1.0 - (dx * dx + dy * dy)).max(0.0).sqrt();
+            let pdf = if z > 0.0 { z * INV_PI } else { 0.0 };
+            // Frame::to_world, then the spawn origin.
+            let mut d = [0.0f32; 3];
+            for j in 0..3 {
+                d[j] = ch.s[j][k] * dx + ch.t[j][k] * dy + ch.fn_[j][k] * z;
+            }
+            let n = [ch.n[0][k], ch.n[1][k], ch.n[2][k]];
+            let p = [ch.p[0][k], ch.p[1][k], ch.p[2][k]];
+            let mag = (1.0 + max3(p[0].abs(), p[1].abs(), p[2].abs())) * RAY_EPSILON;
+            let front = n[0] * d[0] + n[1] * d[1] + n[2] * d[2] >= 0.0;
+            for j in 0..3 {
+                let off = n[j] * mag;
+                ch.o[j][k] = if front { p[j] + off } else { p[j] - off };
+                ch.d[j][k] = d[j];
+            }
+            ch.pdf[k] = pdf;
+            ch.ok[k] = !(pdf <= 0.0);
         }
     }
 }

@@ -65,7 +65,8 @@
 
 use super::path::PathTracer;
 use crate::bsdf::{BsdfContext, Lobe};
-use super::kernels::{self, AreaChunk, LANES};
+use super::kernels::{self, AreaChunk, DiffuseChunk, LANES};
+use crate::bsdf::Bsdf;
 use crate::emitter::{Emitter, EmitterSample, ShadingPoint};
 use crate::geometry::ShapeGeometry;
 use crate::geometry::mesh::Mesh;
@@ -162,6 +163,9 @@ pub struct Queues<S: Spectrum> {
     /// lane its path, the selection's probability and the emitter.
     area: Vec<AreaChunk>,
     area_meta: Vec<(u32, f32, u32)>,
+    /// Diffuse lanes for the BSDF-sampling kernel, and their paths.
+    diffuse: Vec<DiffuseChunk>,
+    diffuse_lane: Vec<u32>,
     /// Counting sort by BSDF.
     bsdf_of: Vec<u32>,
     counts: Vec<u32>,
@@ -194,6 +198,8 @@ impl<S: Spectrum> Default for Queues<S> {
             shadow_blocked: Vec::with_capacity(BATCH),
             area: Vec::new(),
             area_meta: Vec::with_capacity(BATCH),
+            diffuse: Vec::new(),
+            diffuse_lane: Vec::with_capacity(BATCH),
             bsdf_of: Vec::with_capacity(BATCH),
             counts: vec![],
         }
@@ -457,6 +463,33 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     }
 }
 
+/// A path past its BSDF sample (weight, η, density, lobe; the next ray's
+/// origin and direction), then Russian roulette from `rr_depth` on, as
+/// `path` does: whether the path goes on.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn advance<S: Spectrum>(q: &mut Queues<S>, i: usize, weight: S, eta: f32, pdf: f32, lobe: Lobe, o: Vec3, d: Vec3, rr: bool) -> bool {
+    let si = &q.si[i];
+    q.ctx[i] = q.ctx[i].following(lobe);
+    q.throughput[i] *= weight;
+    q.eta[i] *= eta;
+    q.prev_p[i] = si.p;
+    q.prev_n[i] = si.frame.n;
+    q.prev_pdf[i] = pdf;
+    q.prev_delta[i] = lobe.intersects(Lobe::DELTA);
+    q.ray[i] = Ray::new(o, d);
+    let t_max = q.throughput[i].max_component();
+    if rr {
+        let eta = q.eta[i];
+        let p = (t_max * eta * eta).min(0.95);
+        if !(q.sampler[i].next_1d() < p) {
+            return false;
+        }
+        q.throughput[i] *= 1.0 / p;
+    }
+    t_max > 0.0
+}
+
 /// The mesh of emitter `index` if it is an area light that
 /// [`kernels::area_light_directions`] samples from `p` exactly as
 /// `AreaLight::sample_direct` would: constant radiance, not black, sampled
@@ -508,35 +541,59 @@ fn sample_bsdfs<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut
 
     let rr = depth + 1 >= pt.rr_depth;
     q.next.clear();
-    for &i in &q.live {
+    q.diffuse_lane.clear();
+    let live = std::mem::take(&mut q.live);
+    for &i in &live {
         let i = i as usize;
         let si = &q.si[i];
         let bsdf = scene.bsdf(si);
         let sampler = &mut q.sampler[i];
-        let Some(bs) = bsdf.sample_inline::<S>(&q.ctx[i], si, si.wi, sampler.next_1d(), sampler.next_2d(), &q.wl[i]) else { continue };
-        q.ctx[i] = q.ctx[i].following(bs.lobe);
-        let d = si.to_world(bs.wo);
-        q.throughput[i] *= bs.weight;
-        q.eta[i] *= bs.eta;
-        q.prev_p[i] = si.p;
-        q.prev_n[i] = si.frame.n;
-        q.prev_pdf[i] = bs.pdf;
-        q.prev_delta[i] = bs.lobe.intersects(Lobe::DELTA);
-        q.ray[i] = Ray::new(si.spawn_origin(d), d);
-
-        let t_max = q.throughput[i].max_component();
-        if rr {
-            let eta = q.eta[i];
-            let p = (t_max * eta * eta).min(0.95);
-            if !(sampler.next_1d() < p) {
+        let (u1, u2) = (sampler.next_1d(), sampler.next_2d());
+        // Diffuse lanes: their directions by the SIMD kernel below.
+        if let Bsdf::Diffuse(_) = bsdf {
+            if !(si.wi.z <= 0.0) && q.ctx[i].wants(Lobe::DIFFUSE_REFLECTION) {
+                let k = q.diffuse_lane.len();
+                if k % LANES == 0 && k / LANES == q.diffuse.len() {
+                    q.diffuse.push(DiffuseChunk::default());
+                }
+                let (ch, l) = (&mut q.diffuse[k / LANES], k % LANES);
+                for (dst, src) in [(&mut ch.s, si.frame.s), (&mut ch.t, si.frame.t), (&mut ch.fn_, si.frame.n), (&mut ch.p, si.p), (&mut ch.n, si.n)] {
+                    dst[0][l] = src.x;
+                    dst[1][l] = src.y;
+                    dst[2][l] = src.z;
+                }
+                ch.u[0][l] = u2.x;
+                ch.u[1][l] = u2.y;
+                q.diffuse_lane.push(i as u32);
                 continue;
             }
-            q.throughput[i] *= 1.0 / p;
         }
-        if !(t_max > 0.0) {
-            continue;
+        let Some(bs) = bsdf.sample_inline::<S>(&q.ctx[i], si, si.wi, u1, u2, &q.wl[i]) else { continue };
+        let d = si.to_world(bs.wo);
+        let o = si.spawn_origin(d);
+        if advance(q, i, bs.weight, bs.eta, bs.pdf, bs.lobe, o, d, rr) {
+            q.next.push(i as u32);
         }
-        q.next.push(i as u32);
     }
+    if !q.diffuse_lane.is_empty() {
+        let used = q.diffuse_lane.len().div_ceil(LANES);
+        kernels::diffuse_directions(scene.accel.simd_level(), &mut q.diffuse[..used]);
+        for k in 0..q.diffuse_lane.len() {
+            let i = q.diffuse_lane[k] as usize;
+            let (ch, l) = (&q.diffuse[k / LANES], k % LANES);
+            if !ch.ok[l] {
+                continue;
+            }
+            let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
+            let (pdf, o, d) = (ch.pdf[l], v(&ch.o), v(&ch.d));
+            let si = &q.si[i];
+            let Bsdf::Diffuse(b) = scene.bsdf(si) else { continue };
+            let weight = b.reflectance.eval_spectrum::<S>(si, &q.wl[i]).depolarize();
+            if advance(q, i, weight, 1.0, pdf, Lobe::DIFFUSE_REFLECTION, o, d, rr) {
+                q.next.push(i as u32);
+            }
+        }
+    }
+    q.live = live;
     std::mem::swap(&mut q.live, &mut q.next);
 }
