@@ -40,14 +40,25 @@
 //! 2. emission met (MIS against emitter sampling) or the environment, and
 //!    the end of paths at `max_depth`;
 //! 3. next-event estimation in three passes: emitter samples and their
-//!    shadow rays for all paths at a smooth BSDF, the shadow rays traced as
-//!    one stream in packets of 8
+//!    shadow rays for all paths at a smooth BSDF (the emitter chosen per
+//!    path, then area lights on meshes sampled by area for all their lanes
+//!    at once by a SIMD kernel, [`super::kernels::area_light_directions`]),
+//!    the shadow rays traced as one stream in packets of 8
 //!    ([`crate::geometry::accel::Accel::occluded_stream`]; pass-through
 //!    scenes: `Scene::transmittance` per ray), then BSDF values, MIS
 //!    weights and contributions;
 //! 4. BSDF sampling with the paths grouped by BSDF (a counting sort on the
 //!    shape's BSDF index), so that each BSDF's code and data stay hot while
-//!    its paths are sampled; Russian roulette as `path`.
+//!    its paths are sampled (the directions of all `diffuse` lanes by a SIMD
+//!    kernel, [`super::kernels::diffuse_directions`]); Russian roulette as
+//!    `path`.
+//!
+//! The kernels ([`super::kernels`]) run 16 (AVX-512), 8 (AVX2) or 4 lanes
+//! per instruction, chosen at run time as the BVH's traversal is, and
+//! compute the same IEEE operations as the scalar code they stand for, so
+//! the image stays the same bits. The stages are kept out of line
+//! (`inline(never)`: one call per stage and round) so that a profile shows
+//! each on its own.
 //!
 //! Each path owns its sampler ([`Sampler::start`] of its pixel and index)
 //! and draws from it in the scalar path tracer's order (wavelength, pixel
