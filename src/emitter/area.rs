@@ -108,7 +108,10 @@ impl AreaLight {
 
     /// As [`AreaLight::sample_direction`], for direct lighting: by solid
     /// angle on a rectangle where that pays (see [`super::sphrect`]).
-    #[inline]
+    /// (Always inlined into `Scene::sample_emitter_ray`: returned through
+    /// memory, the sample was stored in pieces and reloaded in pieces of
+    /// other sizes, a store-forwarding stall in the path tracers.)
+    #[inline(always)]
     pub fn sample_direct<S: Spectrum>(&self, scene: &Scene, p: Vec3, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
         let Some((rect, sp)) = self.rect.as_ref().and_then(|r| Some((r, r.spherical(p)?))) else {
             return self.sample_direction(scene, p, u, wl);

@@ -167,6 +167,13 @@ impl Mesh {
         self.area_distribution.get_or_init(|| DiscreteDistribution::new((0..self.triangles.len()).map(|i| self.triangle_area(i))))
     }
 
+    /// The triangle [`Mesh::sample_position`] picks for `u` (by area) and
+    /// `u` re-scaled within it (for the batched emitter sampling).
+    #[inline]
+    pub fn sample_triangle(&self, u: f32) -> (usize, f32) {
+        self.area_distribution().sample_reuse(u)
+    }
+
     pub fn vertices(&self, i: usize) -> [Vec3; 3] {
         let [a, b, c] = self.triangles[i];
         [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]

@@ -6,6 +6,7 @@
 pub mod aov;
 pub mod bdpt;
 pub mod direct;
+pub mod kernels;
 pub mod path;
 pub mod path_split;
 pub mod ptracer;

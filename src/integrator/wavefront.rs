@@ -40,14 +40,25 @@
 //! 2. emission met (MIS against emitter sampling) or the environment, and
 //!    the end of paths at `max_depth`;
 //! 3. next-event estimation in three passes: emitter samples and their
-//!    shadow rays for all paths at a smooth BSDF, the shadow rays traced as
-//!    one stream in packets of 8
+//!    shadow rays for all paths at a smooth BSDF (the emitter chosen per
+//!    path, then area lights on meshes sampled by area for all their lanes
+//!    at once by a SIMD kernel, [`super::kernels::area_light_directions`]),
+//!    the shadow rays traced as one stream in packets of 8
 //!    ([`crate::geometry::accel::Accel::occluded_stream`]; pass-through
 //!    scenes: `Scene::transmittance` per ray), then BSDF values, MIS
 //!    weights and contributions;
 //! 4. BSDF sampling with the paths grouped by BSDF (a counting sort on the
 //!    shape's BSDF index), so that each BSDF's code and data stay hot while
-//!    its paths are sampled; Russian roulette as `path`.
+//!    its paths are sampled (the directions of all `diffuse` lanes by a SIMD
+//!    kernel, [`super::kernels::diffuse_directions`]); Russian roulette as
+//!    `path`.
+//!
+//! The kernels ([`super::kernels`]) run 16 (AVX-512), 8 (AVX2) or 4 lanes
+//! per instruction, chosen at run time as the BVH's traversal is, and
+//! compute the same IEEE operations as the scalar code they stand for, so
+//! the image stays the same bits. The stages are kept out of line
+//! (`inline(never)`: one call per stage and round) so that a profile shows
+//! each on its own.
 //!
 //! Each path owns its sampler ([`Sampler::start`] of its pixel and index)
 //! and draws from it in the scalar path tracer's order (wavelength, pixel
@@ -65,7 +76,11 @@
 
 use super::path::PathTracer;
 use crate::bsdf::{BsdfContext, Lobe};
-use crate::emitter::{EmitterSample, ShadingPoint};
+use super::kernels::{self, AreaChunk, DiffuseChunk, LANES};
+use crate::bsdf::Bsdf;
+use crate::emitter::{Emitter, EmitterSample, ShadingPoint};
+use crate::geometry::ShapeGeometry;
+use crate::geometry::mesh::Mesh;
 use crate::film::Sink;
 use crate::geometry::accel::Hit;
 use crate::geometry::{Ray, SurfaceInteraction};
@@ -155,6 +170,13 @@ pub struct Queues<S: Spectrum> {
     shadow_sample: Vec<EmitterSample<S>>,
     shadow_ray: Vec<Ray>,
     shadow_blocked: Vec<bool>,
+    /// Area-light samples for the SIMD kernel: chunks of lanes, and per
+    /// lane its path, the selection's probability and the emitter.
+    area: Vec<AreaChunk>,
+    area_meta: Vec<(u32, f32, u32)>,
+    /// Diffuse lanes for the BSDF-sampling kernel, and their paths.
+    diffuse: Vec<DiffuseChunk>,
+    diffuse_lane: Vec<u32>,
     /// Counting sort by BSDF.
     bsdf_of: Vec<u32>,
     counts: Vec<u32>,
@@ -185,6 +207,10 @@ impl<S: Spectrum> Default for Queues<S> {
             shadow_sample: Vec::with_capacity(BATCH),
             shadow_ray: Vec::with_capacity(BATCH),
             shadow_blocked: Vec::with_capacity(BATCH),
+            area: Vec::new(),
+            area_meta: Vec::with_capacity(BATCH),
+            diffuse: Vec::new(),
+            diffuse_lane: Vec::with_capacity(BATCH),
             bsdf_of: Vec::with_capacity(BATCH),
             counts: vec![],
         }
@@ -287,6 +313,7 @@ fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u3
 }
 
 /// Stage 1: the surfaces the live paths' rays meet, into `q.si` / `q.hit`.
+#[inline(never)]
 fn trace_extension<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Queues<S>) {
     let hide = pt.hide_emitters && depth == 0;
     if scene.pass_through || hide {
@@ -316,6 +343,7 @@ fn trace_extension<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &
 /// Stage 2: emission met along the rays (weighted by MIS against emitter
 /// sampling), the environment for rays that escaped; ends paths that
 /// escaped or reached `max_depth`.
+#[inline(never)]
 fn shade_hits<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Queues<S>) {
     let visible = !(pt.hide_emitters && depth == 0);
     let last = depth.saturating_add(1) >= pt.max_depth;
@@ -348,10 +376,14 @@ fn shade_hits<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Q
 /// emitter samples and shadow rays, the shadow rays traced as a stream,
 /// then the contributions. Also cuts the wavelengths down to the hero
 /// wavelength at a dispersive BSDF, as `path` does before its emitter sample.
+#[inline(never)]
 fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     q.shadow_path.clear();
     q.shadow_sample.clear();
     q.shadow_ray.clear();
+    q.area_meta.clear();
+    // Pass 1: the emitter's choice per path; area lights on meshes go to
+    // the SIMD kernel, the others are sampled here.
     for &i in &q.live {
         let i = i as usize;
         let si = &q.si[i];
@@ -361,11 +393,51 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
         }
         if bsdf.lobes().intersects(Lobe::SMOOTH) {
             let u = q.sampler[i].next_2d();
-            if let Some((es, ray)) = scene.sample_emitter_ray::<S>(si, u, &q.wl[i]) {
+            let Some((index, pmf, ux)) = scene.select_emitter(u.x, &ShadingPoint::from(si)) else { continue };
+            if let Some(mesh) = kernel_area_light(scene, index, si.p) {
+                let (tri, ux) = mesh.sample_triangle(ux);
+                let [a, b, c] = mesh.vertices(tri);
+                let tri_n = mesh.face_normal_at(tri, b - a, c - a);
+                let k = q.area_meta.len();
+                if k % LANES == 0 && k / LANES == q.area.len() {
+                    q.area.push(AreaChunk::default());
+                }
+                let (ch, l) = (&mut q.area[k / LANES], k % LANES);
+                for (dst, src) in [(&mut ch.p, si.p), (&mut ch.n, si.n), (&mut ch.a, a), (&mut ch.b, b), (&mut ch.c, c), (&mut ch.tri_n, tri_n)] {
+                    dst[0][l] = src.x;
+                    dst[1][l] = src.y;
+                    dst[2][l] = src.z;
+                }
+                ch.u[0][l] = ux;
+                ch.u[1][l] = u.y;
+                ch.inv_area[l] = 1.0 / mesh.area();
+                q.area_meta.push((i as u32, pmf, index as u32));
+            } else if let Some((es, ray)) = scene.sample_emitter_ray_from::<S>(si, index, pmf, ux, u.y, &q.wl[i]) {
                 q.shadow_path.push(i as u32);
                 q.shadow_sample.push(es);
                 q.shadow_ray.push(ray);
             }
+        }
+    }
+    // Pass 2: the kernel, then the radiance and the selection divided in
+    // as `AreaLight::sample_direct` and `Scene::sample_emitter_ray` do.
+    if !q.area_meta.is_empty() {
+        let used = q.area_meta.len().div_ceil(LANES);
+        kernels::area_light_directions(scene.accel.simd_level(), &mut q.area[..used]);
+        for (k, &(i, pmf, index)) in q.area_meta.iter().enumerate() {
+            let (ch, l) = (&q.area[k / LANES], k % LANES);
+            if !ch.ok[l] {
+                continue;
+            }
+            let Emitter::Area(light) = &scene.emitters[index as usize] else { continue };
+            let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
+            let pdf = ch.pdf[l];
+            let radiance: S = light.radiance.eval(&q.wl[i as usize]);
+            let weight = radiance / pdf;
+            let es = EmitterSample { d: v(&ch.d), dist: ch.dist[l], p: Some(v(&ch.target)), n: v(&ch.tri_n), weight: weight / pmf, pdf: pdf * pmf, delta: false };
+            q.shadow_path.push(i);
+            q.shadow_sample.push(es);
+            q.shadow_ray.push(Ray { o: v(&ch.ray_o), d: v(&ch.ray_d), tmax: ch.tmax[l] });
         }
     }
     if q.shadow_path.is_empty() {
@@ -402,8 +474,59 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     }
 }
 
+/// A path past its BSDF sample (weight, η, density, lobe; the next ray's
+/// origin and direction), then Russian roulette from `rr_depth` on, as
+/// `path` does: whether the path goes on.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn advance<S: Spectrum>(q: &mut Queues<S>, i: usize, weight: S, eta: f32, pdf: f32, lobe: Lobe, o: Vec3, d: Vec3, rr: bool) -> bool {
+    let si = &q.si[i];
+    q.ctx[i] = q.ctx[i].following(lobe);
+    q.throughput[i] *= weight;
+    q.eta[i] *= eta;
+    q.prev_p[i] = si.p;
+    q.prev_n[i] = si.frame.n;
+    q.prev_pdf[i] = pdf;
+    q.prev_delta[i] = lobe.intersects(Lobe::DELTA);
+    q.ray[i] = Ray::new(o, d);
+    let t_max = q.throughput[i].max_component();
+    if rr {
+        let eta = q.eta[i];
+        let p = (t_max * eta * eta).min(0.95);
+        if !(q.sampler[i].next_1d() < p) {
+            return false;
+        }
+        q.throughput[i] *= 1.0 / p;
+    }
+    t_max > 0.0
+}
+
+/// The mesh of emitter `index` if it is an area light that
+/// [`kernels::area_light_directions`] samples from `p` exactly as
+/// `AreaLight::sample_direct` would: constant radiance, not black, sampled
+/// by area from `p` (a rectangle seen wide is sampled by solid angle), on a
+/// mesh of positive area without vertex normals.
+#[inline]
+fn kernel_area_light(scene: &Scene, index: usize, p: Vec3) -> Option<&Mesh> {
+    let Emitter::Area(a) = &scene.emitters[index] else { return None };
+    if a.texture.is_some() || a.is_black() {
+        return None;
+    }
+    if let Some(r) = &a.rect {
+        if r.spherical(p).is_some() {
+            return None;
+        }
+    }
+    let ShapeGeometry::Mesh(m) = &scene.shapes[a.shape as usize].geometry else { return None };
+    if m.normals.is_some() || m.triangles.is_empty() || !(m.area() > 0.0) {
+        return None;
+    }
+    Some(m)
+}
+
 /// Stage 4: BSDF sampling of the live paths grouped by BSDF, the next
 /// rays, and Russian roulette; the survivors become the live list.
+#[inline(never)]
 fn sample_bsdfs<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Queues<S>) {
     // Counting sort of the live paths by their shape's BSDF index.
     let kinds = scene.bsdfs.len();
@@ -429,35 +552,59 @@ fn sample_bsdfs<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut
 
     let rr = depth + 1 >= pt.rr_depth;
     q.next.clear();
-    for &i in &q.live {
+    q.diffuse_lane.clear();
+    let live = std::mem::take(&mut q.live);
+    for &i in &live {
         let i = i as usize;
         let si = &q.si[i];
         let bsdf = scene.bsdf(si);
         let sampler = &mut q.sampler[i];
-        let Some(bs) = bsdf.sample_inline::<S>(&q.ctx[i], si, si.wi, sampler.next_1d(), sampler.next_2d(), &q.wl[i]) else { continue };
-        q.ctx[i] = q.ctx[i].following(bs.lobe);
-        let d = si.to_world(bs.wo);
-        q.throughput[i] *= bs.weight;
-        q.eta[i] *= bs.eta;
-        q.prev_p[i] = si.p;
-        q.prev_n[i] = si.frame.n;
-        q.prev_pdf[i] = bs.pdf;
-        q.prev_delta[i] = bs.lobe.intersects(Lobe::DELTA);
-        q.ray[i] = Ray::new(si.spawn_origin(d), d);
-
-        let t_max = q.throughput[i].max_component();
-        if rr {
-            let eta = q.eta[i];
-            let p = (t_max * eta * eta).min(0.95);
-            if !(sampler.next_1d() < p) {
+        let (u1, u2) = (sampler.next_1d(), sampler.next_2d());
+        // Diffuse lanes: their directions by the SIMD kernel below.
+        if let Bsdf::Diffuse(_) = bsdf {
+            if !(si.wi.z <= 0.0) && q.ctx[i].wants(Lobe::DIFFUSE_REFLECTION) {
+                let k = q.diffuse_lane.len();
+                if k % LANES == 0 && k / LANES == q.diffuse.len() {
+                    q.diffuse.push(DiffuseChunk::default());
+                }
+                let (ch, l) = (&mut q.diffuse[k / LANES], k % LANES);
+                for (dst, src) in [(&mut ch.s, si.frame.s), (&mut ch.t, si.frame.t), (&mut ch.fn_, si.frame.n), (&mut ch.p, si.p), (&mut ch.n, si.n)] {
+                    dst[0][l] = src.x;
+                    dst[1][l] = src.y;
+                    dst[2][l] = src.z;
+                }
+                ch.u[0][l] = u2.x;
+                ch.u[1][l] = u2.y;
+                q.diffuse_lane.push(i as u32);
                 continue;
             }
-            q.throughput[i] *= 1.0 / p;
         }
-        if !(t_max > 0.0) {
-            continue;
+        let Some(bs) = bsdf.sample_inline::<S>(&q.ctx[i], si, si.wi, u1, u2, &q.wl[i]) else { continue };
+        let d = si.to_world(bs.wo);
+        let o = si.spawn_origin(d);
+        if advance(q, i, bs.weight, bs.eta, bs.pdf, bs.lobe, o, d, rr) {
+            q.next.push(i as u32);
         }
-        q.next.push(i as u32);
     }
+    if !q.diffuse_lane.is_empty() {
+        let used = q.diffuse_lane.len().div_ceil(LANES);
+        kernels::diffuse_directions(scene.accel.simd_level(), &mut q.diffuse[..used]);
+        for k in 0..q.diffuse_lane.len() {
+            let i = q.diffuse_lane[k] as usize;
+            let (ch, l) = (&q.diffuse[k / LANES], k % LANES);
+            if !ch.ok[l] {
+                continue;
+            }
+            let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
+            let (pdf, o, d) = (ch.pdf[l], v(&ch.o), v(&ch.d));
+            let si = &q.si[i];
+            let Bsdf::Diffuse(b) = scene.bsdf(si) else { continue };
+            let weight = b.reflectance.eval_spectrum::<S>(si, &q.wl[i]).depolarize();
+            if advance(q, i, weight, 1.0, pdf, Lobe::DIFFUSE_REFLECTION, o, d, rr) {
+                q.next.push(i as u32);
+            }
+        }
+    }
+    q.live = live;
     std::mem::swap(&mut q.live, &mut q.next);
 }

@@ -301,7 +301,21 @@ impl Scene {
     #[inline(always)]
     pub fn sample_emitter_ray<S: Spectrum>(&self, si: &SurfaceInteraction, u: Vec2, wl: &S::Wavelengths) -> Option<(EmitterSample<S>, Ray)> {
         let (index, pmf, ux) = self.select_emitter(u.x, &ShadingPoint::from(si))?;
-        let mut sample = self.emitters[index].sample_direct::<S>(self, si.p, Vec2::new(ux, u.y), wl)?;
+        self.sample_emitter_ray_from::<S>(si, index, pmf, ux, u.y, wl)
+    }
+
+    /// [`Scene::sample_emitter_ray`] after the selection: emitter `index`
+    /// picked with probability `pmf`, the 2-D sample (`ux` re-scaled by
+    /// the selection, `uy`). The batched path tracer selects first, then
+    /// sends some lights to its own kernels and the others here.
+    #[inline(always)]
+    pub fn sample_emitter_ray_from<S: Spectrum>(&self, si: &SurfaceInteraction, index: usize, pmf: f32, ux: f32, uy: f32, wl: &S::Wavelengths) -> Option<(EmitterSample<S>, Ray)> {
+        let u = Vec2::new(ux, uy);
+        // Area lights (the common case) inline, the others by call.
+        let mut sample = match &self.emitters[index] {
+            Emitter::Area(a) => a.sample_direct::<S>(self, si.p, u, wl),
+            e => e.sample_direct::<S>(self, si.p, u, wl),
+        }?;
         sample.weight = sample.weight / pmf;
         sample.pdf *= pmf;
         let o = si.spawn_origin(sample.d);
