@@ -25,8 +25,22 @@ const MAX_SPATIAL_DEPTH: u32 = 48;
 #[derive(Clone, Copy, Debug)]
 pub struct Record {
     pub p: Vec3,
+    /// Which of the [`NORMAL_BINS`] the vertex's shading normal falls in.
+    pub bin: u8,
     pub d: Vec3,
     pub value: f32,
+}
+
+/// Number of normal classes: the dominant axis of the normal and its sign.
+pub const NORMAL_BINS: usize = 6;
+
+/// The class of the unit normal `n` (surfaces facing apart in one region
+/// of space have their own trees).
+#[inline]
+pub fn normal_bin(n: Vec3) -> u8 {
+    let a = n.abs();
+    let axis = if a.x >= a.y && a.x >= a.z { 0 } else if a.y >= a.z { 1 } else { 2 };
+    (2 * axis + (n[axis] < 0.0) as usize) as u8
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -40,6 +54,8 @@ enum SpatialNode {
 /// A frozen spatial-directional tree.
 #[derive(Clone, Debug, Default)]
 pub struct SdTree {
+    /// Root node of each normal class (all 0 when classes are not used).
+    roots: [u32; NORMAL_BINS],
     nodes: Vec<SpatialNode>,
     dirs: Vec<DirTree>,
 }
@@ -47,10 +63,23 @@ pub struct SdTree {
 impl SdTree {
     /// The tree fitted to `records` over the box `lo`–`hi`; `spp`: the
     /// samples per pixel the records come from.
-    pub fn build(records: &mut [Record], lo: Vec3, hi: Vec3, spp: u32) -> SdTree {
-        let mut tree = SdTree { nodes: vec![SpatialNode::Leaf(u32::MAX)], dirs: vec![] };
+    pub fn build(records: &mut [Record], lo: Vec3, hi: Vec3, spp: u32, by_normal: bool) -> SdTree {
+        let mut tree = SdTree { roots: [0; NORMAL_BINS], nodes: vec![SpatialNode::Leaf(u32::MAX)], dirs: vec![] };
         let threshold = ((SPATIAL_C * (spp.max(1) as f32).sqrt()) as usize).max(MIN_LEAF_RECORDS * 4);
-        tree.build_node(0, records, lo, hi, 0, threshold);
+        if !by_normal {
+            tree.build_node(0, records, lo, hi, 0, threshold);
+            return tree;
+        }
+        records.sort_by_key(|r| r.bin);
+        let mut start = 0;
+        for b in 0..NORMAL_BINS {
+            let end = start + records[start..].iter().take_while(|r| r.bin as usize == b).count();
+            let root = tree.nodes.len();
+            tree.nodes.push(SpatialNode::Leaf(u32::MAX));
+            tree.roots[b] = root as u32;
+            tree.build_node(root, &mut records[start..end], lo, hi, 0, threshold);
+            start = end;
+        }
         tree
     }
 
@@ -87,8 +116,8 @@ impl SdTree {
 
     /// The directional distribution of the region holding `p`, if it has one.
     #[inline]
-    pub fn lookup(&self, p: Vec3) -> Option<&DirTree> {
-        let mut i = 0usize;
+    pub fn lookup(&self, p: Vec3, n: Vec3) -> Option<&DirTree> {
+        let mut i = self.roots[normal_bin(n) as usize] as usize;
         loop {
             match self.nodes[i] {
                 SpatialNode::Inner { axis, split, child } => {

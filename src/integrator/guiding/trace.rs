@@ -21,7 +21,7 @@
 //! set of directions, the quantity the quadtrees are fitted to.
 
 use super::Guiding;
-use super::sdtree::{Record, SdTree};
+use super::sdtree::{Record, SdTree, normal_bin};
 use crate::bsdf::{BsdfContext, Lobe};
 use crate::emitter::ShadingPoint;
 use crate::geometry::{Ray, SurfaceInteraction};
@@ -39,6 +39,7 @@ const GUIDED: Lobe = Lobe::DIFFUSE_REFLECTION.union(Lobe::GLOSSY_REFLECTION);
 #[derive(Clone, Copy)]
 pub struct Open<S> {
     p: Vec3,
+    bin: u8,
     d: Vec3,
     pdf: f32,
     /// Throughput from this vertex's incoming ray on.
@@ -52,11 +53,17 @@ pub struct Open<S> {
 pub struct Recorder<S> {
     open: Vec<Open<S>>,
     pub records: Vec<Record>,
+    /// Whether the vertex before the current one pushed the last open record.
+    last_is_prev: bool,
+    /// Whether to learn direct light too (emitter samples and emission met
+    /// right after a smooth vertex); else only what next-event estimation
+    /// cannot reach from there.
+    pub learn_direct: bool,
 }
 
-impl<S: Spectrum> Default for Recorder<S> {
-    fn default() -> Self {
-        Recorder { open: Vec::with_capacity(16), records: vec![] }
+impl<S: Spectrum> Recorder<S> {
+    pub fn new(learn_direct: bool) -> Self {
+        Recorder { open: Vec::with_capacity(16), records: vec![], last_is_prev: false, learn_direct }
     }
 }
 
@@ -67,6 +74,16 @@ impl<S: Spectrum> Recorder<S> {
     #[inline]
     fn add(&mut self, x: S) {
         for o in self.open.iter_mut() {
+            o.l += o.t * x;
+        }
+    }
+    /// Emission met by the sample of the previous vertex: direct light of
+    /// that vertex if it was smooth (`nee_reachable`).
+    #[inline]
+    fn add_emission(&mut self, x: S, nee_reachable: bool) {
+        let n = self.open.len();
+        let skip = !self.learn_direct && nee_reachable && self.last_is_prev;
+        for o in self.open[..if skip { n - 1 } else { n }].iter_mut() {
             o.l += o.t * x;
         }
     }
@@ -82,16 +99,16 @@ impl<S: Spectrum> Recorder<S> {
             o.t *= w;
         }
     }
-    fn record(&mut self, p: Vec3, d: Vec3, value: f32) {
-        if value.is_finite() && value >= 0.0 {
-            self.records.push(Record { p, d, value });
+    fn record(&mut self, p: Vec3, n: Vec3, d: Vec3, value: f32) {
+        if self.learn_direct && value.is_finite() && value >= 0.0 {
+            self.records.push(Record { p, bin: normal_bin(n), d, value });
         }
     }
     fn flush(&mut self) {
         for o in std::mem::take(&mut self.open) {
             let v = o.l.channel_mean().max(0.0) / o.pdf;
             if v.is_finite() {
-                self.records.push(Record { p: o.p, d: o.d, value: v });
+                self.records.push(Record { p: o.p, bin: o.bin, d: o.d, value: v });
             }
         }
         self.open.clear();
@@ -123,6 +140,7 @@ pub fn li<S: Spectrum>(
     let mut slot = SurfaceInteraction::EMPTY;
     if let Some(r) = rec.as_deref_mut() {
         r.open.clear();
+        r.last_is_prev = false;
     }
 
     loop {
@@ -135,7 +153,7 @@ pub fn li<S: Spectrum>(
                     let x = env * escaped_weight(scene, &ShadingPoint { p: prev_p, n: prev_n }, prev_pdf, prev_delta, ray.d);
                     result += throughput * x;
                     if let Some(r) = rec.as_deref_mut() {
-                        r.add(x);
+                        r.add_emission(x, !prev_delta);
                     }
                 }
             }
@@ -146,7 +164,7 @@ pub fn li<S: Spectrum>(
                 let x = le * hit_weight(scene, &ShadingPoint { p: prev_p, n: prev_n }, prev_pdf, prev_delta, si);
                 result += throughput * x;
                 if let Some(r) = rec.as_deref_mut() {
-                    r.add(x);
+                    r.add_emission(x, !prev_delta);
                 }
             }
         }
@@ -159,7 +177,10 @@ pub fn li<S: Spectrum>(
         }
         let lobes = bsdf.lobes();
         let guidable = !lobes.is_empty() && GUIDED.contains(lobes);
-        let dirs = if guidable { guide.and_then(|g| g.lookup(si.p)) } else { None };
+        // The normal on the path's side: the two sides of a surface see
+        // different light.
+        let side_n = if si.wi.z < 0.0 { -si.frame.n } else { si.frame.n };
+        let dirs = if guidable { guide.and_then(|g| g.lookup(si.p, side_n)) } else { None };
 
         // Next-event estimation, the BSDF strategy's density combined.
         if lobes.intersects(Lobe::SMOOTH) {
@@ -180,7 +201,7 @@ pub fn li<S: Spectrum>(
                 }
                 if guidable {
                     if let Some(r) = rec.as_deref_mut() {
-                        r.record(si.p, es.d, (es.weight * w).channel_mean());
+                        r.record(si.p, side_n, es.d, (es.weight * w).channel_mean());
                     }
                 }
             }
@@ -216,8 +237,9 @@ pub fn li<S: Spectrum>(
         let delta = lobe.intersects(Lobe::DELTA);
         if let Some(r) = rec.as_deref_mut() {
             r.scale(weight);
-            if guidable && !delta && r.open.len() < MAX_OPEN {
-                r.open.push(Open { p: si.p, d, pdf, t: S::splat(1.0), l: S::zero() });
+            r.last_is_prev = guidable && !delta && r.open.len() < MAX_OPEN;
+            if r.last_is_prev {
+                r.open.push(Open { p: si.p, bin: normal_bin(side_n), d, pdf, t: S::splat(1.0), l: S::zero() });
             }
         }
         (prev_p, prev_n) = (si.p, si.frame.n);

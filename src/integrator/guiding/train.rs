@@ -51,6 +51,8 @@ pub fn train<S: Spectrum>(scene: &Scene, pt: &PathTracer, guiding: &Guiding, poo
     let [ox, oy, cw, ch] = scene.film.crop;
     let inv_size = Vec2::new(1.0 / scene.film.width as f32, 1.0 / scene.film.height as f32);
     let offset = Vec2::new(ox as f32, oy as f32);
+    let learn_direct = std::env::var("SNELL_GUIDE_DIRECT").is_ok_and(|v| v == "1");
+    let by_normal = std::env::var("SNELL_GUIDE_NBINS").is_ok_and(|v| v == "1");
     let mut guide: Option<SdTree> = None;
     let mut first = 0u32;
     for spp in schedule(guiding.guiding_spp) {
@@ -62,7 +64,7 @@ pub fn train<S: Spectrum>(scene: &Scene, pt: &PathTracer, guiding: &Guiding, poo
             (0..ch)
                 .into_par_iter()
                 .map(|y| {
-                    let mut rec = Recorder::<S>::default();
+                    let mut rec = Recorder::<S>::new(learn_direct);
                     for x in 0..cw {
                         for index in samples.clone() {
                             let mut sampler = Sampler::start(&spec, x + ox, y + oy, index);
@@ -78,7 +80,7 @@ pub fn train<S: Spectrum>(scene: &Scene, pt: &PathTracer, guiding: &Guiding, poo
         });
         let mut records: Vec<Record> = rows.concat();
         drop(rows);
-        guide = Some(SdTree::build(&mut records, lo, hi, spp));
+        guide = Some(SdTree::build(&mut records, lo, hi, spp, by_normal));
     }
     guide.unwrap_or_default()
 }
