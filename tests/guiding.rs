@@ -117,3 +117,113 @@ fn quadtree_samples_follow_the_pdf() {
     let limit = dof as f64 + 5.0 * (2.0 * dof as f64).sqrt();
     assert!(chi2 < limit, "χ² = {chi2:.1} over {dof} cells (limit {limit:.1})");
 }
+
+use common::*;
+use snell::film::Image;
+use snell::spectrum::Rgb;
+use snell::{RenderOptions, Scene};
+use std::path::Path;
+
+/// `scene`'s text with `extra` XML inside its `path` integrator.
+fn with_props(scene: &Path, extra: &str) -> String {
+    let text = std::fs::read_to_string(scene).expect("scene");
+    let anchor = r#"<integrator type="path">"#;
+    assert!(text.contains(anchor), "{}: no path integrator", scene.display());
+    text.replacen(anchor, &format!("{anchor}{extra}"), 1)
+}
+
+fn guided(spp: u32, fraction: &str) -> String {
+    format!(r#"<boolean name="guiding" value="true"/><integer name="guiding_spp" value="{spp}"/><float name="bsdf_sampling_fraction" value="{fraction}"/>"#)
+}
+
+fn bits(image: &Image) -> Vec<u32> {
+    image.pixels.iter().flat_map(|p| p.0).map(f32::to_bits).collect()
+}
+
+fn load(path: &Path, text: &str, p: &[(&str, &str)]) -> Scene {
+    let options = snell::LoadOptions { params: params(p), ..Default::default() };
+    snell::load_str(path, text, &options).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Guided `path` on the Cornell box against Mitsuba's committed reference
+/// (block z-tests as tests/mitsuba_reference.rs).
+#[test]
+fn guided_cornell_box_matches_mitsuba() {
+    let scene = repo("scenes/cornell-box.xml");
+    let reference = snell::film::output::read_exr(&repo("tests/references/cornell-box.exr")).expect("reference EXR");
+    let passes = render_passes(&scene, Some(&with_props(&scene, &guided(4, "0.5"))), params(&[("res", "128")]), 16, 16);
+    compare(&passes, &reference, 16, 0.003).assert_unbiased("cornell box, guided", 0.01);
+}
+
+/// On the caustic box (light through glass and off metal onto diffuse
+/// surfaces, which the guide learns) guided `path` agrees with unguided.
+#[test]
+fn guided_caustic_box_agrees_with_unguided() {
+    let scene = repo("scenes/caustic-cornell-box.xml");
+    let p = params(&[("res", "64")]);
+    let plain = render_passes(&scene, None, p.clone(), 16, 32);
+    let guide = render_passes(&scene, Some(&with_props(&scene, &guided(8, "0.5"))), p, 16, 32);
+    assert_agree("caustic box: guided vs plain", &guide, &plain, 8, 0.02);
+}
+
+/// The guide is trained in a deterministic pre-phase and frozen: the image
+/// is the same, bit for bit, for any thread count and pass split.
+#[test]
+fn guided_is_exact_across_threads_and_passes() {
+    let path = repo("scenes/cornell-box.xml");
+    let text = with_props(&path, &guided(4, "0.5")).replace(r#"<sampler type="independent""#, r#"<sampler type="zsobol""#);
+    let render = |threads, passes| {
+        // A fresh scene each time: the guide is retrained (as on a resume).
+        let scene = load(&path, &text, &[("res", "40"), ("spp", "8")]);
+        let opts = RenderOptions { threads, passes, ..RenderOptions::default() };
+        snell::render::render_passes::<Rgb>(&scene, &opts, &mut |_| {}).expect("render").0
+    };
+    let want = bits(&render(1, 1));
+    assert!(want.iter().filter(|&&b| f32::from_bits(b) > 0.0).count() > want.len() / 2);
+    for (threads, passes) in [(2, 1), (3, 3), (2, 4)] {
+        assert!(bits(&render(threads, passes)) == want, "{threads} threads, {passes} passes differ");
+    }
+    // A second render of the same scene object reuses the frozen guide.
+    let scene = load(&path, &text, &[("res", "40"), ("spp", "8")]);
+    let opts = RenderOptions { threads: 2, ..RenderOptions::default() };
+    let a = snell::render::render_passes::<Rgb>(&scene, &opts, &mut |_| {}).expect("render").0;
+    let b = snell::render::render_passes::<Rgb>(&scene, &opts, &mut |_| {}).expect("render").0;
+    assert!(bits(&a) == want && bits(&b) == want);
+    // And the guide changes the image (it is used).
+    let plain = load(&path, &std::fs::read_to_string(&path).expect("scene").replace(r#"<sampler type="independent""#, r#"<sampler type="zsobol""#), &[("res", "40"), ("spp", "8")]);
+    let p = snell::render::render_passes::<Rgb>(&plain, &opts, &mut |_| {}).expect("render").0;
+    assert!(bits(&p) != want, "the guided image equals the unguided one");
+}
+
+/// With `bsdf_sampling_fraction` 1 the guide is never sampled and the
+/// combined density is the BSDF's: the image is unguided `path`'s, bit for
+/// bit (so the guided tracer draws the same sampler dimensions).
+#[test]
+fn bsdf_fraction_one_is_plain_path() {
+    let path = repo("scenes/caustic-cornell-box.xml");
+    let p = [("res", "32"), ("spp", "8")];
+    let opts = RenderOptions { threads: 2, ..RenderOptions::default() };
+    let guided_scene = load(&path, &with_props(&path, &guided(2, "1.0")), &p);
+    let plain_scene = load(&path, &std::fs::read_to_string(&path).expect("scene"), &p);
+    let a = snell::render::render_passes::<Rgb>(&guided_scene, &opts, &mut |_| {}).expect("render").0;
+    let b = snell::render::render_passes::<Rgb>(&plain_scene, &opts, &mut |_| {}).expect("render").0;
+    assert!(bits(&a) == bits(&b));
+}
+
+/// Bad values of the guiding parameters are located errors.
+#[test]
+fn bad_guiding_parameters_are_located_errors() {
+    let path = repo("scenes/cornell-box.xml");
+    let cases = [
+        (r#"<integer name="guiding_spp" value="0"/>"#, "guiding_spp"),
+        (r#"<integer name="guiding_spp" value="5000"/>"#, "guiding_spp"),
+        (r#"<float name="bsdf_sampling_fraction" value="0"/>"#, "bsdf_sampling_fraction"),
+        (r#"<float name="bsdf_sampling_fraction" value="1.5"/>"#, "bsdf_sampling_fraction"),
+        (r#"<string name="guiding" value="yes"/>"#, "guiding"),
+    ];
+    for (extra, name) in cases {
+        let err = snell::load_str(&path, &with_props(&path, extra), &Default::default()).err().expect("an error");
+        let msg = err.to_string();
+        assert!(msg.contains(name) && msg.contains("cornell-box.xml:9:"), "{extra}: {msg}");
+    }
+}

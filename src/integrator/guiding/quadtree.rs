@@ -191,3 +191,4 @@ impl DirTree {
         square_to_dir(self.sample_square(u))
     }
 }
+

@@ -14,6 +14,13 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::sync::Arc;
 
+/// Whether the guide learns direct light too. Off: next-event estimation
+/// already samples it (and the guide's density enters its MIS weight), so
+/// the guide learns what comes after another bounce or through a delta
+/// chain (caustics). Measured on the Cornell box at 64², 64 spp: relMSE
+/// 1.38e-3 without direct light, 1.54e-3 with it.
+const LEARN_DIRECT: bool = false;
+
 /// Mixed into the scene's seed for the training sampler.
 const TRAINING_SEED: u64 = 0x6775_6964_696e_6721;
 
@@ -51,8 +58,6 @@ pub fn train<S: Spectrum>(scene: &Scene, pt: &PathTracer, guiding: &Guiding, poo
     let [ox, oy, cw, ch] = scene.film.crop;
     let inv_size = Vec2::new(1.0 / scene.film.width as f32, 1.0 / scene.film.height as f32);
     let offset = Vec2::new(ox as f32, oy as f32);
-    let learn_direct = std::env::var("SNELL_GUIDE_DIRECT").is_ok_and(|v| v == "1");
-    let by_normal = std::env::var("SNELL_GUIDE_NBINS").is_ok_and(|v| v == "1");
     let mut guide: Option<SdTree> = None;
     let mut first = 0u32;
     for spp in schedule(guiding.guiding_spp) {
@@ -64,7 +69,7 @@ pub fn train<S: Spectrum>(scene: &Scene, pt: &PathTracer, guiding: &Guiding, poo
             (0..ch)
                 .into_par_iter()
                 .map(|y| {
-                    let mut rec = Recorder::<S>::new(learn_direct);
+                    let mut rec = Recorder::<S>::new(LEARN_DIRECT);
                     for x in 0..cw {
                         for index in samples.clone() {
                             let mut sampler = Sampler::start(&spec, x + ox, y + oy, index);
@@ -80,7 +85,7 @@ pub fn train<S: Spectrum>(scene: &Scene, pt: &PathTracer, guiding: &Guiding, poo
         });
         let mut records: Vec<Record> = rows.concat();
         drop(rows);
-        guide = Some(SdTree::build(&mut records, lo, hi, spp, by_normal));
+        guide = Some(SdTree::build(&mut records, lo, hi, spp, true));
     }
     guide.unwrap_or_default()
 }
