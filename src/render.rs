@@ -479,6 +479,11 @@ fn render_into<S: Spectrum>(
         return Ok(state);
     }
     let rect = state.pixels();
+    if let Integrator::Path(pt) = &scene.integrator {
+        if let Some(g) = &pt.guiding {
+            crate::integrator::guiding::train::ensure_trained::<S>(scene, pt, g, &pool);
+        }
+    }
     let (taken, invalid) = if let Integrator::Particle(tracer) = &scene.integrator {
         render_particles::<S>(scene, tracer, options, &pool, &samples, rect, &mut state, bar)
     } else if let Integrator::Bdpt(bdpt) = &scene.integrator {
@@ -538,7 +543,7 @@ fn render_camera<S: Spectrum>(
     let shared = std::sync::Mutex::new(state);
     // The batched path tracer, where selected and where it applies.
     let wavefront = match &scene.integrator {
-        Integrator::Path(pt) if !pt.splits() && !S::POLARIZED && n_extra == 0 && options.wavefront.unwrap_or_else(crate::integrator::wavefront::default_for::<S>) => Some(pt),
+        Integrator::Path(pt) if !pt.splits() && !pt.guides() && !S::POLARIZED && n_extra == 0 && options.wavefront.unwrap_or_else(crate::integrator::wavefront::default_for::<S>) => Some(pt),
         _ => None,
     };
     let setup = crate::integrator::wavefront::CameraSetup { crop_offset: [ox, oy], inv_size };

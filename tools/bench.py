@@ -44,7 +44,7 @@ high-spp reference (--ref-spp, Mitsuba llvm_ad_rgb independent if Mitsuba is
 there, else Snell's sobol), then renders --runs images per sampler (seeds
 1..runs) at --spp with Snell's independent, multijitter, sobol and zsobol
 (--snell-samplers; each --snell-integrator KEY=VALUE,... is a variant with
-integer properties added to Snell's integrator, e.g. bsdf_samples=2, "" the
+properties (integer, float, boolean) added to Snell's integrator, e.g. bsdf_samples=2, "" the
 scene's own) and
 Mitsuba's independent, multijitter and ldsampler, in the same run, and prints
   efficiency = 1 / (relMSE × render seconds),
@@ -504,13 +504,17 @@ def rel_mse(img, ref):
 
 def scene_with_sampler(scene, sampler, integrator_props=()):
     """A copy of `scene` (beside it, so relative paths hold) naming `sampler`,
-    with integer properties `integrator_props` (KEY=VALUE) added to its integrator."""
+    with properties `integrator_props` (KEY=VALUE) added to its integrator (boolean
+    for true/false, float for a value with a point, else integer)."""
     text = open(scene).read()
     new, n = re.subn(r'<sampler\s+type="[a-z]+"', f'<sampler type="{sampler}"', text, count=1)
     if n != 1:
         sys.exit(f"{scene}: no <sampler type=...> to replace")
     if integrator_props:
-        props = "".join(f'<integer name="{k}" value="{v}"/>' for k, _, v in (kv.partition("=") for kv in integrator_props))
+        def prop(k, v):
+            kind = "boolean" if v in ("true", "false") else "float" if "." in v else "integer"
+            return f'<{kind} name="{k}" value="{v}"/>'
+        props = "".join(prop(k, v) for k, _, v in (kv.partition("=") for kv in integrator_props))
         new, n = re.subn(r'(<integrator\s+type="[a-z_]+"\s*>)', lambda m: m.group(1) + props, new, count=1)
         if n != 1:
             sys.exit(f"{scene}: no <integrator type=...> to add {integrator_props} to")
@@ -724,7 +728,7 @@ def main():
     ap.add_argument("--snell-samplers", default=",".join(SNELL_SAMPLERS),
                     help="--efficiency: Snell's samplers to measure (comma-separated)")
     ap.add_argument("--snell-integrator", action="append", default=[], metavar="KEY=VALUE[,...]",
-                    help="--efficiency: a variant of Snell's integrator, integer properties added to it "
+                    help="--efficiency: a variant of Snell's integrator, properties added to it (boolean, float or integer) "
                          "(e.g. bsdf_samples=2; repeatable, each one measured; an empty one is the scene's own)")
     ap.add_argument("--mitsuba-efficiency-worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--sampler", help=argparse.SUPPRESS)

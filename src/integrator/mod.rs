@@ -6,6 +6,7 @@
 pub mod aov;
 pub mod bdpt;
 pub mod direct;
+pub mod guiding;
 pub mod kernels;
 pub mod path;
 pub mod path_split;
@@ -58,7 +59,7 @@ impl Integrator {
     pub fn li<S: Spectrum>(&self, scene: &Scene, ray: Ray, sampler: &mut Sampler, wl: &mut S::Wavelengths) -> S {
         match self {
             Integrator::Direct(d) => d.li(scene, ray, sampler, wl),
-            Integrator::Path(p) => if p.splits() { p.li_split(scene, ray, sampler, wl) } else { p.li(scene, ray, sampler, wl) },
+            Integrator::Path(p) => p.li_any(scene, ray, sampler, wl),
             Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => S::zero(),
             Integrator::Aov(a) => a.integrators.first().map_or(S::zero(), |(_, i)| i.li(scene, ray, sampler, wl)),
             Integrator::Moment(m) => m.integrators.first().map_or(S::zero(), |(_, i)| i.li(scene, ray, sampler, wl)),
@@ -99,7 +100,7 @@ impl Integrator {
             Integrator::Direct(d) => (d.li(scene, ray, sampler, wl), hits(d.hide_emitters)),
             Integrator::Path(p) => {
                 let alpha = if scene.environment.is_some() && !p.hide_emitters { 1.0 } else { hits(p.hide_emitters) };
-                (if p.splits() { p.li_split(scene, ray, sampler, wl) } else { p.li(scene, ray, sampler, wl) }, alpha)
+                (p.li_any(scene, ray, sampler, wl), alpha)
             }
             Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => (S::zero(), 0.0),
             Integrator::Aov(a) => a.sample(scene, ray, sampler, wl, channels),

@@ -16,6 +16,7 @@
 //! | `light_sampling` | string | `bvh` | how emitters are chosen: `uniform` (as Mitsuba), `power`, `bvh` ([`crate::emitter::selection`]) |
 //! | `emitter_samples` | integer | 1 | emitter samples at the first vertex ([`crate::integrator::path_split`]) |
 //! | `bsdf_samples` | integer | 1 | paths continued from the first vertex ([`crate::integrator::path_split`]) |
+//! | `guiding` | boolean | false | path guiding ([`crate::integrator::guiding`], with `guiding_spp`, `bsdf_sampling_fraction`) |
 //!
 //! ```xml
 //! <integrator type="path"><integer name="max_depth" value="8"/></integrator>
@@ -39,6 +40,8 @@ pub struct PathTracer {
     /// Splitting at the first vertex ([`crate::integrator::path_split`]); 1, 1 = none.
     pub emitter_samples: u32,
     pub bsdf_samples: u32,
+    /// Path guiding ([`crate::integrator::guiding`]); None = off.
+    pub guiding: Option<crate::integrator::guiding::Guiding>,
 }
 
 impl PathTracer {

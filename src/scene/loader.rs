@@ -395,7 +395,7 @@ impl Loader {
             sampler.seed = seed;
         }
         let integrator =
-            integrator.unwrap_or(Integrator::Path(PathTracer { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false, emitter_samples: 1, bsdf_samples: 1 }));
+            integrator.unwrap_or(Integrator::Path(PathTracer { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false, emitter_samples: 1, bsdf_samples: 1, guiding: None }));
         if let Integrator::Sppm(sppm) = &integrator {
             if sppm.max_passes > 0 && options.spp.is_none() {
                 sampler.set_sample_count(sppm.max_passes);
@@ -1224,6 +1224,11 @@ impl Loader {
                     hide_emitters: props.bool("hide_emitters", false)?,
                     emitter_samples: props.int_checked("emitter_samples", 1, |v| (0..=1024).contains(&v), "between 0 and 1024")? as u32,
                     bsdf_samples: props.int_checked("bsdf_samples", 1, |v| (1..=1024).contains(&v), "between 1 and 1024")? as u32,
+                    guiding: {
+                        let spp = props.int_checked("guiding_spp", 16, |v| (1..=4096).contains(&v), "between 1 and 4096")? as u32;
+                        let fraction = props.float_checked("bsdf_sampling_fraction", 0.5, |v| v > 0.0 && v <= 1.0, "in (0, 1]")?;
+                        props.bool("guiding", false)?.then(|| crate::integrator::guiding::Guiding::new(spp, fraction))
+                    },
                 })
             }
             "ptracer" => {
