@@ -109,20 +109,31 @@ impl PathTracer {
             ray = Ray::new(si.spawn_origin(d), d);
             depth += 1;
 
-            let t_max = throughput.max_component();
-            if depth >= self.rr_depth {
-                let q = (t_max * eta * eta).min(0.95);
-                if !(sampler.next_1d() < q) {
-                    break;
-                }
-                throughput *= 1.0 / q;
-            }
-            if !(t_max > 0.0) {
-                break;
-            }
+            let Some(scale) = russian_roulette(throughput.max_component(), eta, depth, self.rr_depth, sampler) else { break };
+            throughput *= scale;
         }
         result
     }
+}
+
+/// Mitsuba's Russian roulette once a path has `depth` bounces: from
+/// `rr_depth` on it continues with probability min(t_max·η², 0.95). `None`
+/// ends the path (also when its throughput is zero); otherwise the factor
+/// its throughput is scaled by (exactly 1 before `rr_depth`).
+#[inline(always)]
+pub(crate) fn russian_roulette(t_max: f32, eta: f32, depth: u32, rr_depth: u32, sampler: &mut Sampler) -> Option<f32> {
+    let mut scale = 1.0;
+    if depth >= rr_depth {
+        let q = (t_max * eta * eta).min(0.95);
+        if !(sampler.next_1d() < q) {
+            return None;
+        }
+        scale = 1.0 / q;
+    }
+    if !(t_max > 0.0) {
+        return None;
+    }
+    Some(scale)
 }
 
 /// The path tracer's next-event estimate at `si` for a path of throughput

@@ -444,17 +444,8 @@ impl Sppm {
             prev_delta = delta_bounce;
             let d = si.to_world(bs.wo);
             ray = Ray::new(si.spawn_origin(d), d);
-            let t_max = beta.max_component();
-            if depth >= self.rr_depth {
-                let q = (t_max * eta * eta).min(0.95);
-                if !(sampler.next_1d() < q) {
-                    break;
-                }
-                beta *= 1.0 / q;
-            }
-            if !(t_max > 0.0) {
-                break;
-            }
+            let Some(scale) = crate::integrator::path::russian_roulette(beta.max_component(), eta, depth, self.rr_depth, &mut sampler) else { break };
+            beta *= scale;
         }
         let rgb = l.to_rgb(&wl);
         (if rgb.is_finite() { rgb } else { Rgb::zero() }, vp)

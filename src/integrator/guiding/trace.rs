@@ -248,19 +248,10 @@ pub fn li<S: Spectrum>(
         ray = Ray::new(si.spawn_origin(d), d);
         depth += 1;
 
-        let t_max = throughput.max_component();
-        if depth >= pt.rr_depth {
-            let q = (t_max * eta * eta).min(0.95);
-            if !(sampler.next_1d() < q) {
-                break;
-            }
-            throughput *= 1.0 / q;
-            if let Some(r) = rec.as_deref_mut() {
-                r.scale_f(1.0 / q);
-            }
-        }
-        if !(t_max > 0.0) {
-            break;
+        let Some(scale) = crate::integrator::path::russian_roulette(throughput.max_component(), eta, depth, pt.rr_depth, sampler) else { break };
+        throughput *= scale;
+        if let Some(r) = rec.as_deref_mut() {
+            r.scale_f(scale);
         }
     }
     if let Some(r) = rec {
