@@ -125,13 +125,6 @@ use snell::{RenderOptions, Scene};
 use std::path::Path;
 
 /// `scene`'s text with `extra` XML inside its `path` integrator.
-fn with_props(scene: &Path, extra: &str) -> String {
-    let text = std::fs::read_to_string(scene).expect("scene");
-    let anchor = r#"<integrator type="path">"#;
-    assert!(text.contains(anchor), "{}: no path integrator", scene.display());
-    text.replacen(anchor, &format!("{anchor}{extra}"), 1)
-}
-
 fn guided(spp: u32, fraction: &str) -> String {
     format!(r#"<boolean name="guiding" value="true"/><integer name="guiding_spp" value="{spp}"/><float name="bsdf_sampling_fraction" value="{fraction}"/>"#)
 }
@@ -151,7 +144,7 @@ fn load(path: &Path, text: &str, p: &[(&str, &str)]) -> Scene {
 fn guided_cornell_box_matches_mitsuba() {
     let scene = repo("scenes/cornell-box.xml");
     let reference = snell::film::output::read_exr(&repo("tests/references/cornell-box.exr")).expect("reference EXR");
-    let passes = render_passes(&scene, Some(&with_props(&scene, &guided(4, "0.5"))), params(&[("res", "128")]), 16, 16);
+    let passes = render_passes(&scene, Some(&with_path_props(&scene, &guided(4, "0.5"))), params(&[("res", "128")]), 16, 16);
     compare(&passes, &reference, 16, 0.003).assert_unbiased("cornell box, guided", 0.01);
 }
 
@@ -162,7 +155,7 @@ fn guided_caustic_box_agrees_with_unguided() {
     let scene = repo("scenes/caustic-cornell-box.xml");
     let p = params(&[("res", "64")]);
     let plain = render_passes(&scene, None, p.clone(), 16, 32);
-    let guide = render_passes(&scene, Some(&with_props(&scene, &guided(8, "0.5"))), p, 16, 32);
+    let guide = render_passes(&scene, Some(&with_path_props(&scene, &guided(8, "0.5"))), p, 16, 32);
     assert_agree("caustic box: guided vs plain", &guide, &plain, 8, 0.02);
 }
 
@@ -171,7 +164,7 @@ fn guided_caustic_box_agrees_with_unguided() {
 #[test]
 fn guided_is_exact_across_threads_and_passes() {
     let path = repo("scenes/cornell-box.xml");
-    let text = with_props(&path, &guided(4, "0.5")).replace(r#"<sampler type="independent""#, r#"<sampler type="zsobol""#);
+    let text = with_path_props(&path, &guided(4, "0.5")).replace(r#"<sampler type="independent""#, r#"<sampler type="zsobol""#);
     let render = |threads, passes| {
         // A fresh scene each time: the guide is retrained (as on a resume).
         let scene = load(&path, &text, &[("res", "40"), ("spp", "8")]);
@@ -203,7 +196,7 @@ fn bsdf_fraction_one_is_plain_path() {
     let path = repo("scenes/caustic-cornell-box.xml");
     let p = [("res", "32"), ("spp", "8")];
     let opts = RenderOptions { threads: 2, ..RenderOptions::default() };
-    let guided_scene = load(&path, &with_props(&path, &guided(2, "1.0")), &p);
+    let guided_scene = load(&path, &with_path_props(&path, &guided(2, "1.0")), &p);
     let plain_scene = load(&path, &std::fs::read_to_string(&path).expect("scene"), &p);
     let a = snell::render::render_passes::<Rgb>(&guided_scene, &opts, &mut |_| {}).expect("render").0;
     let b = snell::render::render_passes::<Rgb>(&plain_scene, &opts, &mut |_| {}).expect("render").0;
@@ -226,7 +219,7 @@ fn bad_guiding_parameters_are_located_errors() {
         (r#"<string name="guiding" value="yes"/>"#, "guiding"),
     ];
     for (extra, name) in cases {
-        let err = snell::load_str(&path, &with_props(&path, extra), &Default::default()).err().expect("an error");
+        let err = snell::load_str(&path, &with_path_props(&path, extra), &Default::default()).err().expect("an error");
         let msg = err.to_string();
         assert!(msg.contains(name) && msg.contains("cornell-box.xml:9:"), "{extra}: {msg}");
     }

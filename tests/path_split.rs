@@ -8,16 +8,8 @@ use common::*;
 use snell::film::Image;
 use snell::spectrum::Rgb;
 use snell::{RenderOptions, Scene};
-use std::path::Path;
 
 /// `scene`'s text with `extra` XML inside its `path` integrator.
-fn with_split(scene: &Path, extra: &str) -> String {
-    let text = std::fs::read_to_string(scene).expect("scene");
-    let anchor = r#"<integrator type="path">"#;
-    assert!(text.contains(anchor), "{}: no path integrator", scene.display());
-    text.replacen(anchor, &format!("{anchor}{extra}"), 1)
-}
-
 fn split(m: u32, n: u32) -> String {
     format!(r#"<integer name="emitter_samples" value="{m}"/><integer name="bsdf_samples" value="{n}"/>"#)
 }
@@ -29,7 +21,7 @@ fn split(m: u32, n: u32) -> String {
 fn cornell_box_split_matches_mitsuba() {
     let scene = repo("scenes/cornell-box.xml");
     let reference = snell::film::output::read_exr(&repo("tests/references/cornell-box.exr")).expect("reference EXR");
-    let passes = render_passes(&scene, Some(&with_split(&scene, &split(2, 2))), params(&[("res", "128")]), 16, 8);
+    let passes = render_passes(&scene, Some(&with_path_props(&scene, &split(2, 2))), params(&[("res", "128")]), 16, 8);
     compare(&passes, &reference, 16, 0.003).assert_unbiased("cornell box, emitter_samples 2, bsdf_samples 2", 0.01);
 }
 
@@ -42,7 +34,7 @@ fn split_without_emitter_samples_agrees_with_plain_path() {
     let scene = repo("tests/scenes/cornell-glass-gold.xml");
     let p = params(&[("res", "64")]);
     let plain = render_passes(&scene, None, p.clone(), 16, 16);
-    let split = render_passes(&scene, Some(&with_split(&scene, &split(0, 3))), p, 16, 16);
+    let split = render_passes(&scene, Some(&with_path_props(&scene, &split(0, 3))), p, 16, 16);
     assert_agree("cornell glass gold: emitter_samples 0, bsdf_samples 3 vs plain", &split, &plain, 8, 0.02);
 }
 
@@ -67,7 +59,7 @@ fn continuations_cut_the_noise_per_camera_ray() {
         }
         e / imgs.len() as f64
     };
-    let (plain, four) = (err(None), err(Some(&with_split(&scene, &split(1, 4)))));
+    let (plain, four) = (err(None), err(Some(&with_path_props(&scene, &split(1, 4)))));
     eprintln!("relMSE sum: plain {plain:.4e}, bsdf_samples 4 {four:.4e} ({:.2}x)", four / plain);
     assert!(four < 0.6 * plain, "bsdf_samples 4: relMSE {four:.3e} not well below the plain {plain:.3e}");
 }
@@ -81,7 +73,7 @@ fn bits(image: &Image) -> Vec<u32> {
 #[test]
 fn split_is_exact_across_threads_and_passes() {
     let path = repo("scenes/cornell-box.xml");
-    let text = with_split(&path, &split(2, 3)).replace(r#"<sampler type="independent""#, r#"<sampler type="zsobol""#);
+    let text = with_path_props(&path, &split(2, 3)).replace(r#"<sampler type="independent""#, r#"<sampler type="zsobol""#);
     let options = snell::LoadOptions { params: params(&[("res", "40"), ("spp", "8")]), ..Default::default() };
     let scene: Scene = snell::load_str(&path, &text, &options).unwrap_or_else(|e| panic!("{e}"));
     let render = |threads, passes| {
@@ -101,7 +93,7 @@ fn split_counts_out_of_range_are_located_errors() {
     let path = repo("scenes/cornell-box.xml");
     let bad = |m: &str, n: &str| format!(r#"<integer name="emitter_samples" value="{m}"/><integer name="bsdf_samples" value="{n}"/>"#);
     for (extra, name) in [(bad("1", "0"), "bsdf_samples"), (bad("-1", "1"), "emitter_samples")] {
-        let err = snell::load_str(&path, &with_split(&path, &extra), &Default::default()).err().expect("an error");
+        let err = snell::load_str(&path, &with_path_props(&path, &extra), &Default::default()).err().expect("an error");
         let msg = err.to_string();
         assert!(msg.contains(name) && msg.contains("cornell-box.xml:9:"), "{msg}");
     }

@@ -17,6 +17,15 @@ pub fn params(list: &[(&str, &str)]) -> HashMap<String, String> {
     list.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect()
 }
 
+/// The scene file's text with `extra` (property elements) added to its
+/// `path` integrator block.
+pub fn with_path_props(scene: &Path, extra: &str) -> String {
+    let text = std::fs::read_to_string(scene).expect("scene");
+    let anchor = r#"<integrator type="path">"#;
+    assert!(text.contains(anchor), "{}: no path integrator", scene.display());
+    text.replacen(anchor, &format!("{anchor}{extra}"), 1)
+}
+
 /// Renders `passes` independent images (seeds 1..=passes) of `spp` samples each.
 pub fn render_passes(scene: &Path, text: Option<&str>, params: HashMap<String, String>, passes: u32, spp: u32) -> Vec<Image> {
     render_passes_as::<Rgb>(scene, text, params, passes, spp)
