@@ -21,12 +21,14 @@
 //! the single-ray queries. Scenes with instances take the single-ray
 //! traversal for occlusion too.
 
-use super::{Accel, Hit, LEAF, Lanes, RayData, STACK, WIDTH, lanes_of};
+use super::{Accel, Closest, Hit, LEAF, Lanes, RayData, STACK, WIDTH, lanes_of};
 #[cfg(target_arch = "x86_64")]
 use super::Avx;
 use super::{Portable, SimdLevel};
 use crate::geometry::Ray;
 use glam::Vec3A;
+use std::mem::MaybeUninit;
+use std::sync::OnceLock;
 
 /// Rays per occlusion packet: one per lane of the 8-wide node test.
 const RAYS: usize = 8;
@@ -62,8 +64,146 @@ impl Accel {
 
     #[inline(always)]
     fn closest_stream<V: Lanes>(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
-            *hit = self.closest_lanes::<V>(ray);
+        // Instances and quantized nodes take the single-ray traversal.
+        if !self.instances.is_empty() || self.nodes.is_empty() || packets_off() {
+            for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+                *hit = self.closest_lanes::<V>(ray);
+            }
+            return;
+        }
+        for (rays, hits) in rays.chunks(RAYS).zip(hits.chunks_mut(RAYS)) {
+            if coherent(rays) {
+                self.closest_packet::<V>(rays, hits);
+            } else {
+                for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+                    *hit = self.closest_lanes::<V>(ray);
+                }
+            }
+        }
+    }
+
+    /// Closest hits of up to 8 rays as a packet (a BVH of full nodes
+    /// without instances): each child box is tested against all rays at
+    /// once, each ray with its own reach (`Closest::reach`), children are
+    /// visited front to back along the rays' mean direction, and leaves
+    /// test the rays that reach them one by one (`leaf_closest`, the
+    /// single-ray leaf test). The tie rule makes the answer independent of
+    /// the visiting order, so it is the single-ray traversal's.
+    #[inline(always)]
+    fn closest_packet<V: Lanes>(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        let n = rays.len();
+        let (mut inv, mut oinv_n, mut oinv_f) = ([[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3]);
+        let mut reach = [-1.0f32; RAYS];
+        let mut best = [Closest::new(-1.0, 0); RAYS];
+        let mut dsum = Vec3A::ZERO;
+        // The single-ray lanes of each ray, for the leaves.
+        let mut rd: [MaybeUninit<RayData<V>>; RAYS] = [const { MaybeUninit::uninit() }; RAYS];
+        for k in 0..n {
+            let (i, on, of) = slab_constants(&rays[k]);
+            for a in 0..3 {
+                inv[a][k] = i[a];
+                oinv_n[a][k] = on[a];
+                oinv_f[a][k] = of[a];
+            }
+            best[k] = Closest::new(rays[k].tmax, 0);
+            reach[k] = best[k].reach();
+            dsum += Vec3A::from(rays[k].d);
+            rd[k].write(RayData::<V>::new(&rays[k]));
+        }
+        let inv = [V::from_array(inv[0]), V::from_array(inv[1]), V::from_array(inv[2])];
+        let oinv_n = [V::from_array(oinv_n[0]), V::from_array(oinv_n[1]), V::from_array(oinv_n[2])];
+        let oinv_f = [V::from_array(oinv_f[0]), V::from_array(oinv_f[1]), V::from_array(oinv_f[2])];
+        let mut reach_v = V::from_array(reach);
+        let zero = V::splat(0.0);
+        let neg = [inv[0].lt(zero), inv[1].lt(zero), inv[2].lt(zero)];
+        let far = V::splat(super::FAR);
+        let all = lanes_of(n);
+        // Pending nodes: child word and the mask of rays entering it, and
+        // those rays' entry distances (to drop the rays whose hit came
+        // nearer since).
+        let mut stack: [MaybeUninit<(u32, u32, V)>; STACK] = [const { MaybeUninit::uninit() }; STACK];
+        let mut sp = 0usize;
+        let (mut cur, mut active) = (0u32, all);
+        loop {
+            if cur & LEAF == 0 {
+                let node = &self.nodes[cur as usize];
+                let mut entered = [(0.0f32, 0u32, 0u32, zero); WIDTH];
+                let mut k = 0;
+                for c in 0..WIDTH {
+                    // Empty slots hold an inverted box; skip the test.
+                    if node.b[0][c] > node.b[3][c] {
+                        continue;
+                    }
+                    let mut tn = [zero; 3];
+                    let mut tf = [zero; 3];
+                    for a in 0..3 {
+                        let (lo, hi) = (V::splat(node.b[a][c]), V::splat(node.b[3 + a][c]));
+                        let flip = (lo.xor(hi)) & neg[a];
+                        let (near, farp) = (lo.xor(flip), hi.xor(flip));
+                        tn[a] = near.mul_sub(inv[a], oinv_n[a]);
+                        tf[a] = farp.mul_sub(inv[a], oinv_f[a]);
+                    }
+                    let tnear = tn[0].max(tn[1]).max(tn[2].max(zero));
+                    let tfar = tf[0].min(tf[1]).min(tf[2].min(reach_v));
+                    let enter = tnear.le(tfar * far).bitmask() & active;
+                    if enter == 0 {
+                        continue;
+                    }
+                    // Order: the box centre along the mean direction.
+                    let key = (node.b[0][c] + node.b[3][c]) * dsum.x + (node.b[1][c] + node.b[4][c]) * dsum.y + (node.b[2][c] + node.b[5][c]) * dsum.z;
+                    // Insertion sort, farthest first.
+                    let mut j = k;
+                    while j > 0 && entered[j - 1].0 < key {
+                        entered[j] = entered[j - 1];
+                        j -= 1;
+                    }
+                    entered[j] = (key, node.children[c], enter, tnear);
+                    k += 1;
+                }
+                if k > 0 {
+                    for e in &entered[..k - 1] {
+                        stack[sp].write((e.1, e.2, e.3));
+                        sp += 1;
+                    }
+                    (cur, active) = (entered[k - 1].1, entered[k - 1].2);
+                    continue;
+                }
+            } else {
+                let mut m = active;
+                let mut changed = false;
+                while m != 0 {
+                    let k = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    // SAFETY: lanes of `active` are below `n`, written above.
+                    let r = unsafe { rd[k].assume_init_ref() };
+                    let before = best[k].t;
+                    self.leaf_closest::<false, V>(cur, r, &rays[k], &mut best[k]);
+                    if best[k].t != before {
+                        reach[k] = best[k].reach();
+                        changed = true;
+                    }
+                }
+                if changed {
+                    reach_v = V::from_array(reach);
+                }
+            }
+            // Pop a pending node some ray still reaches.
+            loop {
+                if sp == 0 {
+                    for (k, h) in hits.iter_mut().enumerate() {
+                        *h = best[k].hit();
+                    }
+                    return;
+                }
+                sp -= 1;
+                // SAFETY: entries below `sp` were written before.
+                let (c, m, tnear) = unsafe { stack[sp].assume_init() };
+                let m = m & tnear.le(reach_v * far).bitmask();
+                if m != 0 {
+                    (cur, active) = (c, m);
+                    break;
+                }
+            }
         }
     }
 
@@ -209,6 +349,31 @@ impl Accel {
             }
         }
     }
+}
+
+/// Whether a packet of rays is worth tracing together: all run into the
+/// same octant and start within a small ball (camera rays of one pixel or
+/// a few neighbours; after a bounce rays rarely are).
+#[inline(always)]
+fn coherent(rays: &[Ray]) -> bool {
+    if rays.len() < 4 {
+        return false;
+    }
+    let sign = |r: &Ray| (r.d.x < 0.0) as u32 | ((r.d.y < 0.0) as u32) << 1 | ((r.d.z < 0.0) as u32) << 2;
+    let (s0, o0) = (sign(&rays[0]), rays[0].o);
+    let mut ok = true;
+    for r in &rays[1..] {
+        let dist = (r.o - o0).abs();
+        ok &= sign(r) == s0 && dist.max_element() <= 1e-3 * (1.0 + o0.abs().max_element());
+    }
+    ok
+}
+
+/// `SNELL_PACKETS=0` traces every closest hit as a single ray (for
+/// measurements; the hits are the same).
+fn packets_off() -> bool {
+    static OFF: OnceLock<bool> = OnceLock::new();
+    *OFF.get_or_init(|| std::env::var("SNELL_PACKETS").is_ok_and(|v| v == "0"))
 }
 
 /// The inverse direction and the two origin offsets of the slab test, as
