@@ -392,8 +392,9 @@ fn slab_constants(ray: &Ray) -> (Vec3A, Vec3A, Vec3A) {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{shape, triangle_soup};
-    use super::super::{Accel, SimdLevel};
+    use super::super::tests::{prim_t, shape, triangle_soup};
+    use super::super::{Accel, Hit, NO_INSTANCE, SimdLevel};
+    use crate::geometry::mesh::Mesh;
     use crate::geometry::shape::{Shape, ShapeGeometry};
     use crate::geometry::sphere::Sphere;
     use crate::geometry::Ray;
@@ -481,6 +482,154 @@ mod tests {
             accel.occluded_stream(&rays[..n], &mut blocked);
             for i in 0..n {
                 assert_eq!(blocked[i], accel.occluded(&rays[i]), "batch {n} ray {i}");
+            }
+        }
+    }
+
+    /// A grid of 2·n² triangles at height z over [−1, 1]² (n a power of
+    /// two, so every coordinate is dyadic), each square cut along one of its
+    /// diagonals (alternating), listed in order or reversed.
+    fn grid(n: u32, z: f32, reverse: bool) -> Mesh {
+        let s = 2.0 / n as f32;
+        let mut positions = vec![];
+        for j in 0..=n {
+            for i in 0..=n {
+                positions.push(Vec3::new(-1.0 + s * i as f32, -1.0 + s * j as f32, z));
+            }
+        }
+        let v = |i: u32, j: u32| j * (n + 1) + i;
+        let mut triangles = vec![];
+        for j in 0..n {
+            for i in 0..n {
+                let (a, b, c, d) = (v(i, j), v(i + 1, j), v(i + 1, j + 1), v(i, j + 1));
+                if (i + j) % 2 == 0 {
+                    triangles.extend([[a, b, c], [a, c, d]]);
+                } else {
+                    triangles.extend([[a, b, d], [b, c, d]]);
+                }
+            }
+        }
+        if reverse {
+            triangles.reverse();
+        }
+        Mesh::new(positions, None, None, triangles, false)
+    }
+
+    /// Rays onto points of `grid(8, 0, _)`'s edges, vertices and diagonals
+    /// (dyadic, so the tests are exact and every triangle through the point
+    /// reports the same t): straight down from above each point, and in
+    /// bundles of 8 from common origins (coherent packets), slanted.
+    fn edge_rays() -> Vec<Ray> {
+        let mut points = vec![];
+        for j in 0..=32 {
+            for i in 0..=32 {
+                let (x, y) = (-1.0 + 0.0625 * i as f32, -1.0 + 0.0625 * j as f32);
+                // On a grid line, or on a square's diagonal.
+                let on_line = i % 4 == 0 || j % 4 == 0;
+                let (u, v) = (i % 4, j % 4);
+                let cell_even = ((i / 4) + (j / 4)) % 2 == 0;
+                let on_diag = if cell_even { u == v } else { u + v == 4 };
+                if (on_line || on_diag) && i < 32 && j < 32 {
+                    points.push(Vec3::new(x, y, 0.0));
+                }
+            }
+        }
+        let mut rays: Vec<Ray> = points.iter().map(|&p| Ray { o: p + Vec3::Z, d: -Vec3::Z, tmax: f32::INFINITY }).collect();
+        let origins = [Vec3::new(0.0625, -0.3125, 2.0), Vec3::new(-1.5, 0.5, 1.25), Vec3::new(0.75, 1.5, 0.5)];
+        for (k, chunk) in points.chunks(8).enumerate() {
+            let o = origins[k % 3];
+            rays.extend(chunk.iter().map(|&p| Ray { o, d: p - o, tmax: f32::INFINITY }));
+        }
+        rays
+    }
+
+    /// The tie rule: on shared edges and vertices, and against exact
+    /// duplicates (shape 1 is shape 0 again, shape 2 the same triangles in
+    /// reverse order), the hit is the lowest (shape, primitive): shape 0 and
+    /// the lowest triangle through the point, for the single-ray and the
+    /// stream (packet) traversal alike, at every level, with full,
+    /// quantized and gathered nodes and leaves.
+    #[test]
+    fn ties_go_to_the_lowest_shape_and_primitive_whatever_the_order() {
+        let shapes = vec![shape(ShapeGeometry::Mesh(grid(8, 0.0, false))), shape(ShapeGeometry::Mesh(grid(8, 0.0, false))), shape(ShapeGeometry::Mesh(grid(8, 0.0, true)))];
+        let rays = edge_rays();
+        // The triangles of shape 0 through each ray's point (scalar test).
+        let expected: Vec<u32> = rays.iter().map(|ray| (0..128).find(|&p| prim_t(&shapes, 0, p, ray).is_finite()).expect("every ray meets the grid")).collect();
+        let ties = rays.iter().filter(|ray| (0..128).filter(|&p| prim_t(&shapes, 0, p, ray).is_finite()).count() > 1).count();
+        assert!(ties > 300, "{ties} rays on shared edges");
+        for variant in 0..3 {
+            let mut accel = Accel::build(&shapes);
+            match variant {
+                1 => accel.quantize_nodes(),
+                2 => accel.gather_triangles(),
+                _ => {}
+            }
+            for level in SimdLevel::ALL.into_iter().filter(|l| l.supported()) {
+                accel.set_simd_level(level);
+                let mut hits = vec![None; rays.len()];
+                accel.intersect_stream(&rays, &mut hits);
+                for (i, ray) in rays.iter().enumerate() {
+                    let single = accel.intersect(ray).expect("hit");
+                    let stream = hits[i].expect("hit");
+                    assert_eq!((single.shape, single.prim, single.instance), (0, expected[i], NO_INSTANCE), "variant {variant} {level:?} ray {i} single");
+                    assert_eq!((stream.shape, stream.prim, stream.t.to_bits()), (single.shape, single.prim, single.t.to_bits()), "variant {variant} {level:?} ray {i} stream");
+                }
+            }
+        }
+        // Instances: the group is the grid twice, placed three times (the
+        // first two identical): instance 0, shape 0, lowest triangle.
+        let identity = Transform::IDENTITY;
+        let shifted = Transform::from_matrix(glam::Mat4::from_translation(Vec3::new(0.0, 0.0, -0.5))).expect("invertible");
+        let accel = Accel::build_instanced(&shapes, &[], &[vec![0, 1]], &[(identity.clone(), 0), (identity, 0), (shifted, 0)]);
+        let mut hits = vec![None; rays.len()];
+        accel.intersect_stream(&rays, &mut hits);
+        for (i, ray) in rays.iter().enumerate() {
+            let h = accel.intersect(ray).expect("hit");
+            assert_eq!((h.shape, h.prim, h.instance), (0, expected[i], 0), "instanced ray {i}");
+            let s = hits[i].expect("hit");
+            assert_eq!((s.shape, s.prim, s.instance, s.t.to_bits()), (0, expected[i], 0, h.t.to_bits()), "instanced ray {i} stream");
+        }
+    }
+
+    /// Coherent bundles (8 rays from one origin into a narrow cone, as
+    /// camera rays of one pixel) through the random scenes: the packet
+    /// traversal returns the single-ray hits bit for bit, at every level,
+    /// with stored and gathered triangles, and for bundles cut short.
+    #[test]
+    fn coherent_packets_agree_with_single_rays() {
+        for seed in [4, 5] {
+            let (shapes, _) = scene(seed);
+            let mut rng = Pcg32::new(seed, 17);
+            let mut rays = vec![];
+            for b in 0..400 {
+                let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 5.0 - 2.5;
+                let axis = square_to_uniform_sphere(Vec2::new(rng.next_f32(), rng.next_f32()));
+                let spread = [0.002, 0.02, 0.1][b % 3];
+                for _ in 0..8 {
+                    let j = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5;
+                    let d = (axis + j * spread).normalize();
+                    rays.push(Ray { o, d, tmax: if b % 5 == 0 { rng.next_f32() * 3.0 } else { f32::INFINITY } });
+                }
+            }
+            for gathered in [false, true] {
+                let mut accel = Accel::build(&shapes);
+                if gathered {
+                    accel.gather_triangles();
+                }
+                for level in SimdLevel::ALL.into_iter().filter(|l| l.supported()) {
+                    accel.set_simd_level(level);
+                    for len in [rays.len(), rays.len() - 3] {
+                        let mut hits = vec![None; len];
+                        accel.intersect_stream(&rays[..len], &mut hits);
+                        let mut n_hit = 0;
+                        for (i, ray) in rays[..len].iter().enumerate() {
+                            let key = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.bary.0.to_bits(), h.bary.1.to_bits(), h.shape, h.prim));
+                            assert_eq!(key(hits[i]), key(accel.intersect(ray)), "seed {seed} gathered {gathered} {level:?} ray {i}");
+                            n_hit += hits[i].is_some() as usize;
+                        }
+                        assert!(n_hit > 1000 && n_hit < len - 300, "{n_hit}");
+                    }
+                }
             }
         }
     }
