@@ -20,6 +20,12 @@
 //! leaves, plus 36 when the triangles are kept as lanes; the mesh itself
 //! holds the vertices (12 bytes per vertex) and indices (12 per triangle).
 //!
+//! Ties: when several primitives are hit at the same t (an edge or vertex
+//! shared by triangles, coincident shapes), the lowest (shape, primitive,
+//! instance) is reported, whatever order the traversal met them in
+//! (`Closest`), so that packets (`accel/stream.rs`) and single rays agree
+//! bit for bit.
+//!
 //! Instancing (Mitsuba's `shapegroup` + `instance`) makes it two-level:
 //! each shape group gets its own BVH, built once, and each instance is one
 //! primitive of the top-level BVH (its group's box under its transform).

@@ -4,22 +4,32 @@
 //!
 //! | query | how |
 //! |---|---|
-//! | [`Accel::intersect_stream`] | one SIMD level dispatch per batch, then the single-ray closest-hit traversal (8 child boxes per instruction) for each ray in turn, compiled inside the batch loop |
+//! | [`Accel::intersect_stream`] | one SIMD level dispatch per batch; each group of 8 consecutive rays that is coherent (same direction octant, origins within 10⁻³ of each other: camera rays of one pixel) is traced as a packet (`closest_packet`), the others one by one with the single-ray traversal (8 child boxes per instruction), compiled inside the batch loop |
 //! | [`Accel::occluded_stream`] | packets of 8 rays (one ray per lane): each child box of a node is tested against all 8 rays at once, each ray carries its own mask of the nodes it enters, so it visits exactly the nodes its single-ray traversal visits; leaves test the rays that reach them one by one |
 //!
-//! Why this split: closest hits must be bit-identical to the single-ray
-//! traversal (the wavefront renderer promises the same image as `path`),
-//! and with ties on shared edges the order of visits decides which
-//! triangle is reported, so the closest-hit query keeps the single-ray
-//! order. Occlusion is a yes/no answer independent of the order of visits,
-//! so it may be traced as a packet; the slab test per lane is the very
-//! expression of the single-ray test (same near/far planes, same fused
-//! multiply-subtract, same conservative widening), so every ray enters the
-//! same boxes as alone and gets the same answer.
+//! Why packets give the same closest hits: the traversal's answer does not
+//! depend on the order of visits. Among hits at the same t the lowest
+//! (shape, primitive, instance) wins (`Closest`, in `accel.rs`), the
+//! triangle test lets through every triangle whose rounded t is at most the
+//! current one and then compares exactly, and boxes are entered a little
+//! beyond the current t; so a packet, which visits the children along the
+//! rays' mean direction and not each ray's own front-to-back order,
+//! reports what the single-ray traversal reports, bit for bit (the
+//! wavefront renderer promises the same image as `path`). Occlusion is a
+//! yes/no answer independent of the order anyway; its slab test per lane is
+//! the very expression of the single-ray test (same near/far planes, same
+//! fused multiply-subtract, same conservative widening).
+//!
+//! Measured (AVX-512, 2 threads, loaded machine, CPU seconds, medians): the
+//! packets pay on big meshes (1 M triangles: about 5 % less CPU per render)
+//! and are level on the Cornell box; incoherent rays (after a bounce) stay
+//! single rays: a packet whose rays diverge tests 8 boxes per ray where
+//! the single ray tests 8 per instruction. `SNELL_PACKETS=0` turns the
+//! packets off (for measurements; the hits are the same).
 //!
 //! Which instruction set runs is `Accel::simd_level` (`SNELL_SIMD`), as for
-//! the single-ray queries. Scenes with instances take the single-ray
-//! traversal for occlusion too.
+//! the single-ray queries. Scenes with instances or quantized nodes take
+//! the single-ray traversal for both queries.
 
 use super::{Accel, Closest, Hit, LEAF, Lanes, RayData, STACK, WIDTH, lanes_of};
 #[cfg(target_arch = "x86_64")]
