@@ -20,6 +20,12 @@
 //! leaves, plus 36 when the triangles are kept as lanes; the mesh itself
 //! holds the vertices (12 bytes per vertex) and indices (12 per triangle).
 //!
+//! Ties: when several primitives are hit at the same t (an edge or vertex
+//! shared by triangles, coincident shapes), the lowest (shape, primitive,
+//! instance) is reported, whatever order the traversal met them in
+//! (`Closest`), so that packets (`accel/stream.rs`) and single rays agree
+//! bit for bit.
+//!
 //! Instancing (Mitsuba's `shapegroup` + `instance`) makes it two-level:
 //! each shape group gets its own BVH, built once, and each instance is one
 //! primitive of the top-level BVH (its group's box under its transform).
@@ -440,8 +446,14 @@ impl<V: Lanes> RayData<V> {
     /// Möller–Trumbore on a packet, divisions deferred: returns the
     /// numerators of t, b1, b2 and |det|, all with det's sign removed, and
     /// the mask of hits in (0, tmax).
+    ///
+    /// `LOOSE` (closest hits): the mask keeps t ≤ tmax with a few ulps to
+    /// spare instead of t < tmax, so that every triangle whose rounded t
+    /// (as `closest_in` divides it) is at most tmax passes; `closest_in`
+    /// then compares the rounded t exactly (the tie rule needs hits at
+    /// exactly tmax).
     #[inline(always)]
-    fn triangles(&self, p: &TriPacket<V>, tmax: f32) -> ([V; 4], u32) {
+    fn triangles<const LOOSE: bool>(&self, p: &TriPacket<V>, tmax: f32) -> ([V; 4], u32) {
         let [dx, dy, dz] = self.d8;
         // c = v0 − o, r = d × c
         let cx = p.v0[0] - self.o8[0];
@@ -463,35 +475,108 @@ impl<V: Lanes> RayData<V> {
             & zero.le(v)
             & (u + v).le(adet)
             & zero.lt(t)
-            & t.lt(V::splat(tmax) * adet);
+            & if LOOSE { t.le(V::splat(tmax) * adet * V::splat(1.0 + 8.0 * f32::EPSILON)) } else { t.lt(V::splat(tmax) * adet) };
         ([t, u, v, adet], ok.bitmask())
     }
 }
 
 impl<V: Lanes> RayData<V> {
-    /// The nearest hit among the first `n` lanes of the packet, as
-    /// (lane, t, b1, b2); the divisions only for a packet with a hit.
+    /// The hit among the first `n` lanes of the packet that `best` accepts
+    /// and that beats the others under the tie rule (nearest t, then lowest
+    /// `key` of the lane), as (lane, t, b1, b2); the divisions only for a
+    /// packet with a hit, the keys only for equal t.
     #[inline(always)]
-    fn closest_in(&self, p: &TriPacket<V>, n: usize, tmax: f32) -> Option<(usize, f32, f32, f32)> {
-        let ([t, u, v, adet], mask) = self.triangles(p, tmax);
+    fn closest_in(&self, p: &TriPacket<V>, n: usize, best: &Closest, key: impl Fn(usize) -> u128) -> Option<(usize, f32, f32, f32)> {
+        let ([t, u, v, adet], mask) = self.triangles::<true>(p, best.t);
         let mut mask = mask & lanes_of(n);
         if mask == 0 {
             return None;
         }
         let inv = V::splat(1.0) / adet;
         let (t, u, v) = ((t * inv).to_array(), u * inv, v * inv);
-        let mut lane = mask.trailing_zeros() as usize;
-        mask &= mask - 1;
+        // The leader so far: `best` itself (lane None), then lanes; its key
+        // computed when a tie needs it.
+        let (mut lane, mut lt, mut lk) = (None, best.t, Some(best.key));
         while mask != 0 {
             let i = mask.trailing_zeros() as usize;
             mask &= mask - 1;
-            if t[i] < t[lane] {
-                lane = i;
+            if t[i] < lt {
+                (lane, lt, lk) = (Some(i), t[i], None);
+            } else if t[i] == lt {
+                let k = key(i);
+                let cur = match (lk, lane) {
+                    (Some(k), _) => k,
+                    (None, Some(l)) => key(l),
+                    (None, None) => u128::MAX,
+                };
+                if k < cur {
+                    (lane, lk) = (Some(i), Some(k));
+                } else {
+                    lk = Some(cur);
+                }
             }
         }
+        let lane = lane?;
         Some((lane, t[lane], u.to_array()[lane], v.to_array()[lane]))
     }
 }
+
+/// The tie key of a hit: among hits at the same t the lowest (shape,
+/// primitive, instance) wins, whatever the order in which the traversal
+/// meets them, so that any visiting order (single ray, packets) reports
+/// the same hit.
+#[inline(always)]
+fn tie_key(shape: u32, prim: u32, instance: u32) -> u128 {
+    (shape as u128) << 64 | (prim as u128) << 32 | instance as u128
+}
+
+/// The closest hit of one ray so far.
+#[derive(Clone, Copy, Debug)]
+struct Closest {
+    /// Its distance; the ray's tmax before a hit.
+    t: f32,
+    /// Its `tie_key`; before a hit 0 (a hit at exactly the ray's tmax is
+    /// refused: the ray covers [0, tmax)) or `u128::MAX` (a group's
+    /// traversal for an instance, whose hits at tmax the caller weighs).
+    key: u128,
+    b1: f32,
+    b2: f32,
+    found: bool,
+}
+
+impl Closest {
+    #[inline(always)]
+    fn new(tmax: f32, key: u128) -> Closest {
+        Closest { t: tmax, key, b1: 0.0, b2: 0.0, found: false }
+    }
+
+    /// Whether a hit at `t` with `key` beats this one.
+    #[inline(always)]
+    fn accepts(&self, t: f32, key: u128) -> bool {
+        t < self.t || (t == self.t && key < self.key)
+    }
+
+    #[inline(always)]
+    fn set(&mut self, t: f32, key: u128, b1: f32, b2: f32) {
+        *self = Closest { t, key, b1, b2, found: true };
+    }
+
+    /// Distance up to which boxes are entered: a little beyond `t`, so that
+    /// a box holding a triangle hit at exactly `t` (a tie) is never culled
+    /// by the rounding of its entry distance, whichever hit was found first.
+    #[inline(always)]
+    fn reach(&self) -> f32 {
+        self.t * REACH
+    }
+
+    #[inline(always)]
+    fn hit(&self) -> Option<Hit> {
+        self.found.then(|| Hit { t: self.t, bary: (self.b1, self.b2), shape: (self.key >> 64) as u32, prim: (self.key >> 32) as u32, instance: self.key as u32 })
+    }
+}
+
+/// `Closest::reach`'s margin: 2⁻¹².
+const REACH: f32 = 1.0 + 1.0 / 4096.0;
 
 /// The triangles `tris` (at most `PACKET`, vertex indices into
 /// `positions`), one lane each, as `Accel::gather` makes them; lanes past
@@ -951,12 +1036,14 @@ impl Accel {
     // instance code is compiled out, so a scene without them runs as before.
     #[inline(always)]
     fn closest_lanes<V: Lanes>(&self, ray: &Ray) -> Option<Hit> {
+        let mut best = Closest::new(ray.tmax, 0);
         match (self.instances.is_empty(), self.qnodes.is_empty()) {
-            (true, true) => self.closest::<false, false, V>(ray),
-            (false, true) => self.closest::<true, false, V>(ray),
-            (true, false) => self.closest::<false, true, V>(ray),
-            (false, false) => self.closest::<true, true, V>(ray),
+            (true, true) => self.closest::<false, false, V>(ray, &mut best),
+            (false, true) => self.closest::<true, false, V>(ray, &mut best),
+            (true, false) => self.closest::<false, true, V>(ray, &mut best),
+            (false, false) => self.closest::<true, true, V>(ray, &mut best),
         }
+        best.hit()
     }
 
     #[inline(always)]
@@ -972,8 +1059,8 @@ impl Accel {
     /// The traversal of an instanced group, whose node format may differ
     /// from the top level's.
     #[inline(always)]
-    fn group_closest<V: Lanes>(&self, ray: &Ray) -> Option<Hit> {
-        if self.qnodes.is_empty() { self.closest::<false, false, V>(ray) } else { self.closest::<false, true, V>(ray) }
+    fn group_closest<V: Lanes>(&self, ray: &Ray, best: &mut Closest) {
+        if self.qnodes.is_empty() { self.closest::<false, false, V>(ray, best) } else { self.closest::<false, true, V>(ray, best) }
     }
 
     #[inline(always)]
@@ -1015,18 +1102,15 @@ impl Accel {
         self.occluded_lanes::<Avx>(ray)
     }
 
-    /// Closest hit; `INSTANCES`: this BVH may hold instances (whose groups
-    /// are traced by the `false` copy: groups do not nest); `Q`: its nodes
-    /// are the quantized ones.
+    /// Closest hit, improving on `best` (which it starts from); `INSTANCES`:
+    /// this BVH may hold instances (whose groups are traced by the `false`
+    /// copy: groups do not nest); `Q`: its nodes are the quantized ones.
     #[inline(always)]
-    fn closest<const INSTANCES: bool, const Q: bool, V: Lanes>(&self, ray: &Ray) -> Option<Hit> {
+    fn closest<const INSTANCES: bool, const Q: bool, V: Lanes>(&self, ray: &Ray, best: &mut Closest) {
         if if Q { self.qnodes.is_empty() } else { self.nodes.is_empty() } {
-            return None;
+            return;
         }
         let r = RayData::<V>::new(ray);
-        let mut tmax = ray.tmax;
-        let mut found: Option<(PrimRef, f32, f32)> = None;
-        let mut instance = NO_INSTANCE;
         // Entries: entry distance bits (non-negative floats order like
         // their bits) above the child code, so they sort as integers.
         let mut stack: [MaybeUninit<u64>; STACK] = [MaybeUninit::uninit(); STACK];
@@ -1036,10 +1120,10 @@ impl Accel {
             if cur & LEAF == 0 {
                 let ((tnear, mask), children) = if Q {
                     let node = &self.qnodes[cur as usize];
-                    (r.slab_q(node, tmax), &node.children)
+                    (r.slab_q(node, best.reach()), &node.children)
                 } else {
                     let node = &self.nodes[cur as usize];
-                    (r.slab(node, tmax), &node.children)
+                    (r.slab(node, best.reach()), &node.children)
                 };
                 if mask != 0 {
                     let rest = mask & (mask - 1);
@@ -1073,75 +1157,80 @@ impl Accel {
                     cur = keys[k - 1] as u32;
                     continue;
                 }
-            } else if cur & DIRECT != 0 {
-                let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
-                if self.keeps_packets() {
-                    if let Some((lane, t, u, v)) = r.closest_in(&self.lanes_at::<V>(first), n, tmax) {
-                        tmax = t;
-                        let tri = self.tris[first + lane];
-                        found = Some((PrimRef { shape: self.meshes[tri.mesh as usize].shape, prim: tri.prim }, u, v));
-                        if INSTANCES {
-                            instance = NO_INSTANCE;
-                        }
-                    }
-                } else {
-                    let m = &self.meshes[self.direct as usize];
-                    let p = gather_run::<V>(&m.positions, &m.triangles[first..first + n]);
-                    if let Some((lane, t, u, v)) = r.closest_in(&p, n, tmax) {
-                        tmax = t;
-                        found = Some((PrimRef { shape: m.shape, prim: (first + lane) as u32 }, u, v));
-                        if INSTANCES {
-                            instance = NO_INSTANCE;
-                        }
-                    }
-                }
             } else {
-                let leaf = &self.leaves[(cur & !LEAF) as usize];
-                for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
-                    let first = leaf.tri_start as usize + k * PACKET;
-                    if let Some((lane, t, u, v)) = r.closest_in(&self.packet::<V>(first, refs), refs.len(), tmax) {
-                        tmax = t;
-                        let tri = refs[lane];
-                        found = Some((PrimRef { shape: self.meshes[tri.mesh as usize].shape, prim: tri.prim }, u, v));
-                        if INSTANCES {
-                            instance = NO_INSTANCE;
-                        }
-                    }
-                }
-                for oi in leaf.other_start..leaf.other_end {
-                    let g = &self.others[oi as usize];
-                    if let (true, PrimGeom::Instance(i)) = (INSTANCES, g) {
-                        let (group, local) = self.instance_ray(*i, ray, tmax);
-                        if let Some(h) = group.group_closest::<V>(&local) {
-                            tmax = h.t;
-                            found = Some((PrimRef { shape: h.shape, prim: h.prim }, h.bary.0, h.bary.1));
-                            instance = *i;
-                        }
-                        continue;
-                    }
-                    let (t, _, _) = intersect_prim_bary(g, r.o, r.d, tmax);
-                    if t < tmax {
-                        tmax = t;
-                        found = Some((self.other_refs[oi as usize], 0.0, 0.0));
-                        if INSTANCES {
-                            instance = NO_INSTANCE;
-                        }
-                    }
-                }
+                self.leaf_closest::<INSTANCES, V>(cur, &r, ray, best);
             }
             // Pop the nearest pending node still in reach.
             loop {
                 if sp == 0 {
-                    let (pref, b1, b2) = found?;
-                    return Some(Hit { t: tmax, bary: (b1, b2), shape: pref.shape, prim: pref.prim, instance });
+                    return;
                 }
                 sp -= 1;
                 // SAFETY: entries below `sp` were written before.
                 let key = unsafe { stack[sp].assume_init() };
-                if f32::from_bits((key >> 32) as u32) <= tmax {
+                if f32::from_bits((key >> 32) as u32) <= best.reach() {
                     cur = key as u32;
                     break;
                 }
+            }
+        }
+    }
+
+    /// The hits in leaf `cur` (a child word with `LEAF` set) on `ray`
+    /// (lanes `r`) that beat `best`, into it; instances are traced into
+    /// their groups when `INSTANCES`. Shared by the single-ray and packet
+    /// closest hits.
+    #[inline(always)]
+    fn leaf_closest<const INSTANCES: bool, V: Lanes>(&self, cur: u32, r: &RayData<V>, ray: &Ray, best: &mut Closest) {
+        if cur & DIRECT != 0 {
+            let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
+            if self.keeps_packets() {
+                let key = |lane: usize| {
+                    let tri = self.tris[first + lane];
+                    tie_key(self.meshes[tri.mesh as usize].shape, tri.prim, NO_INSTANCE)
+                };
+                if let Some((lane, t, u, v)) = r.closest_in(&self.lanes_at::<V>(first), n, best, key) {
+                    best.set(t, key(lane), u, v);
+                }
+            } else {
+                let m = &self.meshes[self.direct as usize];
+                let p = gather_run::<V>(&m.positions, &m.triangles[first..first + n]);
+                let key = |lane: usize| tie_key(m.shape, (first + lane) as u32, NO_INSTANCE);
+                if let Some((lane, t, u, v)) = r.closest_in(&p, n, best, key) {
+                    best.set(t, key(lane), u, v);
+                }
+            }
+            return;
+        }
+        let leaf = &self.leaves[(cur & !LEAF) as usize];
+        for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
+            let first = leaf.tri_start as usize + k * PACKET;
+            let key = |lane: usize| {
+                let tri = refs[lane];
+                tie_key(self.meshes[tri.mesh as usize].shape, tri.prim, NO_INSTANCE)
+            };
+            if let Some((lane, t, u, v)) = r.closest_in(&self.packet::<V>(first, refs), refs.len(), best, key) {
+                best.set(t, key(lane), u, v);
+            }
+        }
+        for oi in leaf.other_start..leaf.other_end {
+            let g = &self.others[oi as usize];
+            if let (true, PrimGeom::Instance(i)) = (INSTANCES, g) {
+                let (group, local) = self.instance_ray(*i, ray, best.t);
+                let mut h = Closest::new(best.t, u128::MAX);
+                group.group_closest::<V>(&local, &mut h);
+                let key = h.key & !(u32::MAX as u128) | *i as u128;
+                if h.found && best.accepts(h.t, key) {
+                    best.set(h.t, key, h.b1, h.b2);
+                }
+                continue;
+            }
+            // Hits at exactly `best.t` too (the tie rule weighs them).
+            let (t, _, _) = intersect_prim_bary(g, r.o, r.d, best.t.next_up());
+            let pr = self.other_refs[oi as usize];
+            let key = tie_key(pr.shape, pr.prim, NO_INSTANCE);
+            if best.accepts(t, key) {
+                best.set(t, key, 0.0, 0.0);
             }
         }
     }
@@ -1200,12 +1289,12 @@ impl Accel {
                 let m = &self.meshes[self.direct as usize];
                 gather_run::<V>(&m.positions, &m.triangles[first..first + n])
             };
-            return r.triangles(&p, tmax).1 & lanes_of(n) != 0;
+            return r.triangles::<false>(&p, tmax).1 & lanes_of(n) != 0;
         }
         let leaf = &self.leaves[(cur & !LEAF) as usize];
         for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
             let first = leaf.tri_start as usize + k * PACKET;
-            if r.triangles(&self.packet::<V>(first, refs), tmax).1 & lanes_of(refs.len()) != 0 {
+            if r.triangles::<false>(&self.packet::<V>(first, refs), tmax).1 & lanes_of(refs.len()) != 0 {
                 return true;
             }
         }
