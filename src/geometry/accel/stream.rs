@@ -20,9 +20,9 @@
 //! the very expression of the single-ray test (same near/far planes, same
 //! fused multiply-subtract, same conservative widening).
 //!
-//! Measured (AVX-512, 2 threads, loaded machine, CPU seconds, medians): the
-//! packets pay on big meshes (1 M triangles: about 5 % less CPU per render)
-//! and are level on the Cornell box; incoherent rays (after a bounce) stay
+//! Measured (AVX-512, 2 threads, machine at load 7-11, whole-process CPU
+//! seconds): 1 M triangles -5 % (2 runs), 4 M -2 % (3 runs), the Cornell box
+//! level: no gain yet clear of the noise. Incoherent rays (after a bounce) stay
 //! single rays: a packet whose rays diverge tests 8 boxes per ray where
 //! the single ray tests 8 per instruction. `SNELL_PACKETS=0` turns the
 //! packets off (for measurements; the hits are the same).
