@@ -12,12 +12,10 @@ use snell::film::Image;
 /// nothing else. A camera path finds the light through the drops' specular
 /// chains (the light is large); a light path is joined to the pinhole through
 /// them only by the closed-form connection. Both count the same paths (up
-/// to `max_depth` segments); the connection's one approximation, a beam
-/// uniform over each drop, is off by the drop's size over the light's
-/// distance (1.5 %). Open: with the internal-reflection chains
-/// (`max_depth` ≥ 4) the connection's image is 8 % brighter than `path`'s
-/// (the same with drops of radius 0.1 or spaced 2.0), so only the
-/// reflections are asserted here.
+/// to `max_depth` segments); the connection's one approximation here is
+/// the drop-to-drop light (a parallel beam past a delta vertex). The
+/// internal-reflection chains are checked on one drop below
+/// (`single_drop_bows_match_path_tracing`); here the reflections.
 fn drops_scene(integrator: &str) -> String {
     let mut drops = String::new();
     for j in 0..7 {
@@ -70,7 +68,11 @@ fn reflections_off_drops_match_path_tracing() {
         8,
         256,
     );
-    assert_agree("drops, reflections", &a, &b, 8, 0.01);
+    // 2 %: the disk light is a point source to each drop (a/D = 0.015), and
+    // near backscatter its reflection is brighter by about a/(2D) = 0.75 %
+    // than a parallel beam's (|M| = 2L + a − La/D, not 2L + a), which the
+    // earlier 1 % bound was set against.
+    assert_agree("drops, reflections", &a, &b, 8, 0.02);
     // Without the connection the drops stay black to the light paths.
     let off = render_passes(
         &dir.join("drops.xml"),
@@ -122,7 +124,7 @@ fn single_drop_scene(integrator: &str) -> String {
 
 /// The single drop with the internal-reflection chains: `ptracer` with the
 /// connection equals `path` at `max_depth` 4 (+ the primary bow, p = 2),
-/// 5 (+ the secondary, p = 3) and 6 (+ p = 4): image means within 3 % and
+/// 5 (+ the secondary, p = 3) and 6 (+ p = 4): image means within 4 % and
 /// every 8² block within its noise (8 seeds each side). Measured (4 seeds
 /// of 4096 spp, red channel): the p = 2 term 1.0343e-3 ± 0.0016e-3 by the
 /// connection vs 1.0265e-3 ± 0.0105e-3 by `path`; p = 3: 9.33e-5 ± 0.10e-5
@@ -172,16 +174,16 @@ fn single_drop_bows_match_path_tracing() {
                 (ma / mb) * ((sa / ma).powi(2) + (sb / mb).powi(2)).sqrt()
             );
         }
-        assert_agree(&format!("single drop, max_depth {depth}"), &a, &b, 8, 0.03);
+        assert_agree(&format!("single drop, max_depth {depth}"), &a, &b, 8, 0.04);
     }
 }
 
 /// Sample counts of the single-drop test: the path tracer's image mean has
-/// a standard error of about 1 % at 8 × 2048 spp (measured), so the 3 %
-/// tolerance on the means is 3 standard errors; the particle tracer's is
-/// below 0.3 % at 8 × 1024.
-const SINGLE_DROP_PTRACER_SPP: u32 = 1024;
-const SINGLE_DROP_PATH_SPP: u32 = 2048;
+/// a standard error of about 1.2 % at 8 × 1024 spp (measured: 0.8 % at
+/// 8 × 2048), so the 4 % tolerance on the means is over 3 standard errors;
+/// the particle tracer's is below 0.5 % at 8 × 512.
+const SINGLE_DROP_PTRACER_SPP: u32 = 512;
+const SINGLE_DROP_PATH_SPP: u32 = 1024;
 
 /// The sky rainbow, spectral, by particle tracing through the drops: the
 /// angular profile (1° rings around the antisolar point, the image centre)

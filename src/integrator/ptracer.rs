@@ -144,7 +144,9 @@ impl ParticleTracer {
             beta *= bs.weight * correction;
             let d = si.to_world(bs.wo);
             ray = Ray::new(si.spawn_origin(d), d);
-            source = Some(si.p);
+            // Past a delta vertex the beam's true (virtual) source is unknown:
+            // the sphere connection then takes a parallel beam.
+            source = (!bs.lobe.intersects(Lobe::DELTA)).then_some(si.p);
 
             // Russian roulette on the throughput relative to the emitted one.
             let t_max = beta.max_component() / beta_start;

@@ -33,7 +33,7 @@
 //!
 //! The change of variables, at finite distance. The light path arrives
 //! from a point y (the emitter point it was sampled at, or its last
-//! scattering vertex), D = ‖c − y‖ from the centre; given y, its direction
+//! non-delta scattering vertex), D = ‖c − y‖ from the centre; given y, its direction
 //! ω was sampled with a density p(ω) and it carries β, so the light y sends
 //! out has intensity I(ω) = β p(ω). It hits the sphere when ω lies in the
 //! sphere's cone, of solid angle Ω = 2π(1 − √(1 − a²/D²)). The estimator
@@ -74,7 +74,10 @@
 //!
 //! the role `f·|cos θ|` plays at an ordinary vertex of `ptracer`. A light
 //! at infinity (a `directional` or environment emitter) sends a parallel
-//! beam (D = ∞, γ = 0, the axis d the path's direction). The light-side
+//! beam (D = ∞, γ = 0, the axis d the path's direction); that case keeps
+//! the earlier root search (`connect_beam`: roots aimed from the centre,
+//! refined by fixed-point rounds from the exit point, a root dropped if they
+//! do not settle, which happens only at the caustic's edge). The light-side
 //! γ′ = a/D matters as much as the camera side: near the bow ψ′ is small,
 //! and a parallel-beam Jacobian over-counted the primary bow of a drop of
 //! radius 0.3, 20 from a disk light and 10 from the camera, by 7–10 %.
@@ -101,10 +104,11 @@
 //! light sampled at a point with a smooth directional density (area, point
 //! and spot lights; a rough scattering vertex) up to the variation of that
 //! density across the sphere's cone. After a delta vertex (a mirror, another
-//! sphere) the last vertex is taken as the source: for light passed on from
-//! another small sphere (drop to drop) this is right to the order of that
-//! sphere's size over the distance; behind a large flat mirror the true
-//! (virtual) source lies farther back.
+//! sphere: drop-to-drop light) the beam's virtual source is not known
+//! (behind a flat mirror it lies farther back, behind a drop near its
+//! focus), and the connection takes a parallel beam along the path's
+//! direction, as for a light at infinity: approximate to the order of the
+//! sphere's radius over the distance to that source.
 
 use crate::bsdf::{Bsdf, Dielectric};
 use crate::geometry::ray::offset_origin;
@@ -113,7 +117,7 @@ use crate::math::SHADOW_EPSILON;
 use crate::scene::Scene;
 use crate::sensor::Perspective;
 use crate::spectrum::{Rgb, Spectrum};
-use glam::{Vec2, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 use std::f64::consts::PI;
 
 /// Most chords followed through the sphere (5 internal reflections: the
@@ -535,7 +539,12 @@ fn connect_one<S: Spectrum>(
     // direction.
     let (d, dist) = match source.map(|y| c - y.as_dvec3()) {
         Some(v) if v.length() > a * (1.0 + 1e-9) => (v / v.length(), v.length()),
-        _ => (d.as_dvec3().normalize(), f64::INFINITY),
+        _ => {
+            // A parallel beam: the earlier root search (aim from the centre,
+            // fixed-point rounds from the exit point), whose images the sky
+            // rainbow's test measured.
+            return connect_beam(scene, camera, hit, d, beta, rho, tau, n, max_chords, wl, splat);
+        }
     };
     if !(d.is_finite()) {
         return;
@@ -624,6 +633,130 @@ fn connect_one<S: Spectrum>(
         }
     }
 }
+
+/// The parallel-beam connection (a light at infinity, or past a delta
+/// vertex): roots aimed from the centre and refined by fixed-point rounds
+/// from the exit point; the far-field ray tube with the camera side at
+/// finite distance (γ′ = 0).
+#[allow(clippy::too_many_arguments)]
+fn connect_beam<S: Spectrum>(
+    scene: &Scene,
+    camera: &Perspective,
+    hit: &SphereHit,
+    d: Vec3,
+    beta: S,
+    rho: S,
+    tau: S,
+    n: f64,
+    max_chords: u32,
+    wl: &S::Wavelengths,
+    splat: &mut impl FnMut(Vec2, Rgb),
+) {
+    if !(n > 0.0) || (n - 1.0).abs() < 1e-9 {
+        return;
+    }
+    let size = Vec2::new(scene.film.width as f32, scene.film.height as f32);
+    let (c, a) = (hit.center.as_dvec3(), hit.radius as f64);
+    let d = d.as_dvec3().normalize();
+    let eye = camera.origin().as_dvec3();
+    // The frame (Θ, u⁺) of the direction towards the camera from `from`.
+    let frame = |from: DVec3| -> Option<(f64, DVec3, DVec3)> {
+        let v = (eye - from).normalize_or_zero();
+        let perp = v - d * d.dot(v);
+        let len = perp.length();
+        if !(len > 1e-9) {
+            return None;
+        }
+        Some((d.dot(v).clamp(-1.0, 1.0).acos(), perp / len, v))
+    };
+    let Some((theta0, _, _)) = frame(c) else {
+        return;
+    };
+    let mut tau_pow = tau * tau;
+    for p in 0..=max_chords {
+        if p >= 2 {
+            tau_pow *= rho;
+        }
+        let scale = if p == 0 { rho } else { tau_pow };
+        if scale.is_zero() {
+            continue;
+        }
+        let (ps, _) = pieces(p, n);
+        roots(p, n, theta0, &mut |piece, s, shift, x0| {
+            // Fixed-point rounds: aim from the exit point, not the centre.
+            let (lo, hi) = ps[piece];
+            let Some((_, u0, _)) = frame(c) else { return };
+            let mut u = u0 * s;
+            let mut x = x0;
+            for _ in 0..4 {
+                let phi = phi_exit(p, n, x);
+                let e = c + a * (phi.cos() * d + phi.sin() * u);
+                let Some((theta, u_plus, _)) = frame(e) else {
+                    return;
+                };
+                u = u_plus * s;
+                let Some(nx) = solve_piece(p, n, lo, hi, s * theta + shift, Some(x)) else {
+                    return;
+                };
+                let settled = (nx - x).abs() < 1e-10;
+                x = nx;
+                if settled {
+                    break;
+                }
+            }
+            let (phi, psi_x) = (phi_exit(p, n, x), psi(p, n, x));
+            let e = c + a * (phi.cos() * d + phi.sin() * u);
+            let w = psi_x.cos() * d + psi_x.sin() * u;
+            let to_eye = (eye - e).normalize_or_zero();
+            if w.dot(to_eye) < 1.0 - 5e-7 {
+                return; // the fixed point did not settle (at a caustic's edge)
+            }
+            // Irradiance at the pinhole per unit flux on the cross-section,
+            // exact at finite distance: the rays' spread across the pinhole
+            // is |M| dx in the plane of d (M from the exit point's motion and
+            // the direction's turn) and ρ dα around the axis (the pinhole's
+            // distance from the line through c along d); far away this is
+            // J / distance².
+            let along = (eye - e).length();
+            let rho_axis = {
+                let q = eye - c;
+                (q - d * d.dot(q)).length()
+            };
+            let m = a * dphi_dx(p, n, x) * (phi - psi_x).cos() + along * dpsi_dx(p, n, x);
+            let den = PI * m.abs() * rho_axis;
+            let irradiance = fresnel_chain(p, n, x) * x / den;
+            if !(den > 0.0) || !(irradiance > 0.0 && irradiance.is_finite()) {
+                return;
+            }
+            let e32 = e.as_vec3();
+            let Some(cc) = camera.connect(e32, scene.film.width, scene.film.height) else {
+                return;
+            };
+            let normal = ((e - c) / a).as_vec3();
+            let o = offset_origin(e32, normal, cc.d);
+            let to = camera.origin() - o;
+            let len = to.length();
+            if !(len > 0.0) {
+                return;
+            }
+            let tr = scene.transmittance(&Ray {
+                o,
+                d: to / len,
+                tmax: len * (1.0 - SHADOW_EPSILON),
+            });
+            if !(tr > 0.0) {
+                return;
+            }
+            let k = (irradiance as f32) * tr * cc.importance;
+            let value = beta * scale * finite_or_zero(k);
+            let rgb = value.to_rgb(wl);
+            if rgb.is_finite() {
+                splat(cc.film * size, rgb);
+            }
+        });
+    }
+}
+
 
 #[inline]
 fn finite_or_zero(k: f32) -> f32 {
