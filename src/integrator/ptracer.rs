@@ -98,7 +98,7 @@ impl ParticleTracer {
         // Where the current segment's direction was sampled from (a point of
         // the emitter or the last scattering vertex): the point source seen
         // by a sphere connection; none for emitters at infinity (a beam).
-        let mut source = scene.lights.select_emission(u_pick).map(|(e, _, _)| &scene.emitters[e]).filter(|e| !e.is_environment() && !matches!(e, crate::emitter::Emitter::Directional(_))).map(|_| ray.o);
+        let mut source = self.sphere_connection.then(|| scene.lights.select_emission(u_pick)).flatten().map(|(e, _, _)| &scene.emitters[e]).filter(|e| !e.is_environment() && !matches!(e, crate::emitter::Emitter::Directional(_))).map(|_| ray.o);
         // Segments traced so far (emitter → … → current vertex).
         let mut segments = 0u32;
         let mut ctx = BsdfContext::IMPORTANCE;
