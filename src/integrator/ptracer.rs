@@ -95,6 +95,10 @@ impl ParticleTracer {
             return;
         }
         let mut ray = em.ray;
+        // Where the current segment's direction was sampled from (a point of
+        // the emitter or the last scattering vertex): the point source seen
+        // by a sphere connection; none for emitters at infinity (a beam).
+        let mut source = self.sphere_connection.then(|| scene.lights.select_emission(u_pick)).flatten().map(|(e, _, _)| &scene.emitters[e]).filter(|e| !e.is_environment() && !matches!(e, crate::emitter::Emitter::Directional(_))).map(|_| ray.o);
         // Segments traced so far (emitter → … → current vertex).
         let mut segments = 0u32;
         let mut ctx = BsdfContext::IMPORTANCE;
@@ -111,7 +115,7 @@ impl ParticleTracer {
             if self.sphere_connection {
                 if let Some(hit) = super::sphere_connection::sphere_at(scene, &si, bsdf) {
                     let chords = i64::from(self.max_depth) - i64::from(segments) - 1;
-                    super::sphere_connection::connect::<S>(scene, camera, &hit, &si, ray.d, beta, chords, wl, splat);
+                    super::sphere_connection::connect::<S>(scene, camera, &hit, &si, ray.d, source, beta, chords, wl, splat);
                 }
             }
             // Past a dispersive interface the direction (and a rough one's
@@ -140,6 +144,9 @@ impl ParticleTracer {
             beta *= bs.weight * correction;
             let d = si.to_world(bs.wo);
             ray = Ray::new(si.spawn_origin(d), d);
+            // Past a delta vertex the beam's true (virtual) source is unknown:
+            // the sphere connection then takes a parallel beam.
+            source = (!bs.lobe.intersects(Lobe::DELTA)).then_some(si.p);
 
             // Russian roulette on the throughput relative to the emitted one.
             let t_max = beta.max_component() / beta_start;
