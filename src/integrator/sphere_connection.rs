@@ -532,7 +532,6 @@ fn connect_one<S: Spectrum>(
     if !(n > 0.0) || (n - 1.0).abs() < 1e-9 {
         return;
     }
-    let size = Vec2::new(scene.film.width as f32, scene.film.height as f32);
     let (c, a) = (hit.center.as_dvec3(), hit.radius as f64);
     let eye = camera.origin().as_dvec3();
     // The axis: from the point source through the centre, or the beam's
@@ -604,31 +603,7 @@ fn connect_one<S: Spectrum>(
                 if !(den > 0.0) || !(irradiance > 0.0 && irradiance.is_finite()) {
                     return;
                 }
-                let e32 = e.as_vec3();
-                let Some(cc) = camera.connect(e32, scene.film.width, scene.film.height) else {
-                    return;
-                };
-                let normal = ((e - c) / a).as_vec3();
-                let o = offset_origin(e32, normal, cc.d);
-                let to = camera.origin() - o;
-                let l = to.length();
-                if !(l > 0.0) {
-                    return;
-                }
-                let tr = scene.transmittance(&Ray {
-                    o,
-                    d: to / l,
-                    tmax: l * (1.0 - SHADOW_EPSILON),
-                });
-                if !(tr > 0.0) {
-                    return;
-                }
-                let k = (irradiance as f32) * tr * cc.importance;
-                let value = beta * scale * finite_or_zero(k);
-                let rgb = value.to_rgb(wl);
-                if rgb.is_finite() {
-                    splat(cc.film * size, rgb);
-                }
+                splat_exit(scene, camera, c, a, e, irradiance, beta * scale, wl, splat);
             });
         }
     }
@@ -655,7 +630,6 @@ fn connect_beam<S: Spectrum>(
     if !(n > 0.0) || (n - 1.0).abs() < 1e-9 {
         return;
     }
-    let size = Vec2::new(scene.film.width as f32, scene.film.height as f32);
     let (c, a) = (hit.center.as_dvec3(), hit.radius as f64);
     let d = d.as_dvec3().normalize();
     let eye = camera.origin().as_dvec3();
@@ -728,35 +702,54 @@ fn connect_beam<S: Spectrum>(
             if !(den > 0.0) || !(irradiance > 0.0 && irradiance.is_finite()) {
                 return;
             }
-            let e32 = e.as_vec3();
-            let Some(cc) = camera.connect(e32, scene.film.width, scene.film.height) else {
-                return;
-            };
-            let normal = ((e - c) / a).as_vec3();
-            let o = offset_origin(e32, normal, cc.d);
-            let to = camera.origin() - o;
-            let len = to.length();
-            if !(len > 0.0) {
-                return;
-            }
-            let tr = scene.transmittance(&Ray {
-                o,
-                d: to / len,
-                tmax: len * (1.0 - SHADOW_EPSILON),
-            });
-            if !(tr > 0.0) {
-                return;
-            }
-            let k = (irradiance as f32) * tr * cc.importance;
-            let value = beta * scale * finite_or_zero(k);
-            let rgb = value.to_rgb(wl);
-            if rgb.is_finite() {
-                splat(cc.film * size, rgb);
-            }
+            splat_exit(scene, camera, c, a, e, irradiance, beta * scale, wl, splat);
         });
     }
 }
 
+/// Light leaving the sphere (centre `c`, radius `a`) at `e` towards the
+/// pinhole, with `irradiance` there per unit of the light path's weight:
+/// the camera's importance and film position at `e`, visibility from just
+/// outside the surface, and the splat of weight · irradiance · importance.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn splat_exit<S: Spectrum>(
+    scene: &Scene,
+    camera: &Perspective,
+    c: DVec3,
+    a: f64,
+    e: DVec3,
+    irradiance: f64,
+    weight: S,
+    wl: &S::Wavelengths,
+    splat: &mut impl FnMut(Vec2, Rgb),
+) {
+    let e32 = e.as_vec3();
+    let Some(cc) = camera.connect(e32, scene.film.width, scene.film.height) else {
+        return;
+    };
+    let normal = ((e - c) / a).as_vec3();
+    let o = offset_origin(e32, normal, cc.d);
+    let to = camera.origin() - o;
+    let len = to.length();
+    if !(len > 0.0) {
+        return;
+    }
+    let tr = scene.transmittance(&Ray {
+        o,
+        d: to / len,
+        tmax: len * (1.0 - SHADOW_EPSILON),
+    });
+    if !(tr > 0.0) {
+        return;
+    }
+    let k = (irradiance as f32) * tr * cc.importance;
+    let rgb = (weight * finite_or_zero(k)).to_rgb(wl);
+    if rgb.is_finite() {
+        let size = Vec2::new(scene.film.width as f32, scene.film.height as f32);
+        splat(cc.film * size, rgb);
+    }
+}
 
 #[inline]
 fn finite_or_zero(k: f32) -> f32 {

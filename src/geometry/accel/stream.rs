@@ -31,7 +31,7 @@
 //! the single-ray queries. Scenes with instances or quantized nodes take
 //! the single-ray traversal for both queries.
 
-use super::{Accel, Closest, Hit, LEAF, Lanes, RayData, STACK, WIDTH, lanes_of};
+use super::{Accel, Closest, Hit, LEAF, Lanes, Node, RayData, STACK, WIDTH, lanes_of};
 #[cfg(target_arch = "x86_64")]
 use super::Avx;
 use super::{Portable, SimdLevel};
@@ -42,6 +42,57 @@ use std::sync::OnceLock;
 
 /// Rays per occlusion packet: one per lane of the 8-wide node test.
 const RAYS: usize = 8;
+
+/// A packet's per-lane slab constants: lane k holds ray k's single-ray
+/// constants, so each lane's box test is the single-ray test's expression.
+/// (Plain loops: closures and `array::from_fn` would be compiled outside
+/// the caller's target features and not inlined.)
+struct PacketSlabs<V> {
+    inv: [V; 3],
+    oinv_n: [V; 3],
+    oinv_f: [V; 3],
+    /// All-ones lanes where the ray runs towards −axis: its near plane is
+    /// the box's maximum there.
+    neg: [V; 3],
+}
+
+impl<V: Lanes> PacketSlabs<V> {
+    #[inline(always)]
+    fn new(rays: &[Ray]) -> Self {
+        let (mut inv, mut oinv_n, mut oinv_f) = ([[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3]);
+        for k in 0..rays.len() {
+            let (i, on, of) = slab_constants(&rays[k]);
+            for a in 0..3 {
+                inv[a][k] = i[a];
+                oinv_n[a][k] = on[a];
+                oinv_f[a][k] = of[a];
+            }
+        }
+        let inv = [V::from_array(inv[0]), V::from_array(inv[1]), V::from_array(inv[2])];
+        let oinv_n = [V::from_array(oinv_n[0]), V::from_array(oinv_n[1]), V::from_array(oinv_n[2])];
+        let oinv_f = [V::from_array(oinv_f[0]), V::from_array(oinv_f[1]), V::from_array(oinv_f[2])];
+        let zero = V::splat(0.0);
+        let neg = [inv[0].lt(zero), inv[1].lt(zero), inv[2].lt(zero)];
+        PacketSlabs { inv, oinv_n, oinv_f, neg }
+    }
+
+    /// Every lane's entry and exit distance through child `c`'s box, the
+    /// exit capped at that lane's `limit`.
+    #[inline(always)]
+    fn child(&self, node: &Node, c: usize, limit: V) -> (V, V) {
+        let zero = V::splat(0.0);
+        let mut tn = [zero; 3];
+        let mut tf = [zero; 3];
+        for a in 0..3 {
+            let (lo, hi) = (V::splat(node.b[a][c]), V::splat(node.b[3 + a][c]));
+            let flip = (lo.xor(hi)) & self.neg[a];
+            let (near, farp) = (lo.xor(flip), hi.xor(flip));
+            tn[a] = near.mul_sub(self.inv[a], self.oinv_n[a]);
+            tf[a] = farp.mul_sub(self.inv[a], self.oinv_f[a]);
+        }
+        (tn[0].max(tn[1]).max(tn[2].max(zero)), tf[0].min(tf[1]).min(tf[2].min(limit)))
+    }
+}
 
 impl Accel {
     /// The closest hit of every ray of `rays` into `hits` (same length),
@@ -102,30 +153,20 @@ impl Accel {
     #[inline(always)]
     fn closest_packet<V: Lanes>(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         let n = rays.len();
-        let (mut inv, mut oinv_n, mut oinv_f) = ([[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3]);
+        let slabs = PacketSlabs::<V>::new(rays);
         let mut reach = [-1.0f32; RAYS];
         let mut best = [Closest::new(-1.0, 0); RAYS];
         let mut dsum = Vec3A::ZERO;
         // The single-ray lanes of each ray, for the leaves.
         let mut rd: [MaybeUninit<RayData<V>>; RAYS] = [const { MaybeUninit::uninit() }; RAYS];
         for k in 0..n {
-            let (i, on, of) = slab_constants(&rays[k]);
-            for a in 0..3 {
-                inv[a][k] = i[a];
-                oinv_n[a][k] = on[a];
-                oinv_f[a][k] = of[a];
-            }
             best[k] = Closest::new(rays[k].tmax, 0);
             reach[k] = best[k].reach();
             dsum += Vec3A::from(rays[k].d);
             rd[k].write(RayData::<V>::new(&rays[k]));
         }
-        let inv = [V::from_array(inv[0]), V::from_array(inv[1]), V::from_array(inv[2])];
-        let oinv_n = [V::from_array(oinv_n[0]), V::from_array(oinv_n[1]), V::from_array(oinv_n[2])];
-        let oinv_f = [V::from_array(oinv_f[0]), V::from_array(oinv_f[1]), V::from_array(oinv_f[2])];
         let mut reach_v = V::from_array(reach);
         let zero = V::splat(0.0);
-        let neg = [inv[0].lt(zero), inv[1].lt(zero), inv[2].lt(zero)];
         let far = V::splat(super::FAR);
         let all = lanes_of(n);
         // Pending nodes: child word and the mask of rays entering it, and
@@ -144,17 +185,7 @@ impl Accel {
                     if node.b[0][c] > node.b[3][c] {
                         continue;
                     }
-                    let mut tn = [zero; 3];
-                    let mut tf = [zero; 3];
-                    for a in 0..3 {
-                        let (lo, hi) = (V::splat(node.b[a][c]), V::splat(node.b[3 + a][c]));
-                        let flip = (lo.xor(hi)) & neg[a];
-                        let (near, farp) = (lo.xor(flip), hi.xor(flip));
-                        tn[a] = near.mul_sub(inv[a], oinv_n[a]);
-                        tf[a] = farp.mul_sub(inv[a], oinv_f[a]);
-                    }
-                    let tnear = tn[0].max(tn[1]).max(tn[2].max(zero));
-                    let tfar = tf[0].min(tf[1]).min(tf[2].min(reach_v));
+                    let (tnear, tfar) = slabs.child(node, c, reach_v);
                     let enter = tnear.le(tfar * far).bitmask() & active;
                     if enter == 0 {
                         continue;
@@ -264,29 +295,12 @@ impl Accel {
     #[inline(always)]
     fn occluded_packet<V: Lanes>(&self, rays: &[Ray]) -> u32 {
         let n = rays.len();
-        // Per lane, the single-ray slab constants of its ray (plain loops:
-        // closures and `array::from_fn` would be compiled outside the
-        // caller's target features and not inlined).
-        let (mut inv, mut oinv_n, mut oinv_f) = ([[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3]);
+        let slabs = PacketSlabs::<V>::new(rays);
         let mut tmax = [-1.0f32; RAYS];
         for k in 0..n {
-            let (i, on, of) = slab_constants(&rays[k]);
-            for a in 0..3 {
-                inv[a][k] = i[a];
-                oinv_n[a][k] = on[a];
-                oinv_f[a][k] = of[a];
-            }
             tmax[k] = rays[k].tmax;
         }
-        let inv = [V::from_array(inv[0]), V::from_array(inv[1]), V::from_array(inv[2])];
-        let oinv_n = [V::from_array(oinv_n[0]), V::from_array(oinv_n[1]), V::from_array(oinv_n[2])];
-        let oinv_f = [V::from_array(oinv_f[0]), V::from_array(oinv_f[1]), V::from_array(oinv_f[2])];
         let tmax = V::from_array(tmax);
-        // All-ones lanes where the ray runs towards −axis: its near plane
-        // is the box's maximum there.
-        let zero0 = V::splat(0.0);
-        let neg = [inv[0].lt(zero0), inv[1].lt(zero0), inv[2].lt(zero0)];
-        let zero = V::splat(0.0);
         let far = V::splat(super::FAR);
         let mut blocked = 0u32;
         let all = lanes_of(n);
@@ -303,17 +317,7 @@ impl Accel {
                     if node.b[0][c] > node.b[3][c] {
                         continue;
                     }
-                    let mut tn = [zero; 3];
-                    let mut tf = [zero; 3];
-                    for a in 0..3 {
-                        let (lo, hi) = (V::splat(node.b[a][c]), V::splat(node.b[3 + a][c]));
-                        let flip = (lo.xor(hi)) & neg[a];
-                        let (near, farp) = (lo.xor(flip), hi.xor(flip));
-                        tn[a] = near.mul_sub(inv[a], oinv_n[a]);
-                        tf[a] = farp.mul_sub(inv[a], oinv_f[a]);
-                    }
-                    let tnear = tn[0].max(tn[1]).max(tn[2].max(zero));
-                    let tfar = tf[0].min(tf[1]).min(tf[2].min(tmax));
+                    let (tnear, tfar) = slabs.child(node, c, tmax);
                     let enter = tnear.le(tfar * far).bitmask() & active;
                     if enter == 0 {
                         continue;
