@@ -222,10 +222,10 @@ impl Sink {
         let stride = self.stride;
         let peak = v.iter().map(|q| q.unsigned_abs()).max().unwrap_or(0);
         // Every term of a sample below the limit is below 2^56 (|w| ≤ 2^20);
-        // the filter's values are within ±1 (checked here, so a weight needs
-        // no clamp: it is the same as `fixed_weight`'s).
+        // the filter's values are within ±1 (known for the filter or checked
+        // here, so a weight needs no clamp: it is the same as `fixed_weight`'s).
         let in_range = |w: &[f32]| w.iter().all(|x| x.abs() <= 1.0);
-        let narrow = peak < NARROW_LIMIT && !self.narrow.is_empty() && in_range(&wx[..nx]) && in_range(&wy[..ny]);
+        let narrow = peak < NARROW_LIMIT && !self.narrow.is_empty() && (filter.within_one() || (in_range(&wx[..nx]) && in_range(&wy[..ny])));
         if narrow {
             let bound = peak << WEIGHT_BITS;
             if self.load > i64::MAX as u64 - bound {

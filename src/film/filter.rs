@@ -41,6 +41,9 @@ pub struct Filter {
     /// Segment i: the values at |x| = i·radius/(LUT − 1) and the next one,
     /// stored together so a lookup reads one entry.
     segments: Vec<[f32; 2]>,
+    /// Whether every value [`Filter::eval`] returns lies within ±1 (so a
+    /// sink need not check each sample's weights).
+    within_one: bool,
 }
 
 const LUT: usize = 256;
@@ -99,8 +102,12 @@ impl Filter {
     pub fn new(kind: FilterKind) -> Filter {
         let radius = kind.radius();
         let value = |i: usize| kind.eval(radius * i as f32 / (LUT - 1) as f32);
-        let segments = (0..LUT - 1).map(|i| [value(i), value(i + 1)]).collect();
-        Filter { kind, radius, scale: (LUT - 1) as f32 / radius, segments }
+        let segments: Vec<[f32; 2]> = (0..LUT - 1).map(|i| [value(i), value(i + 1)]).collect();
+        // A lookup a + (b − a)·t (0 ≤ t < 1) lies between a and b up to a
+        // few roundings (< 10⁻⁶ relative); the box filter returns 0 or 1.
+        let peak = segments.iter().flatten().fold(0.0f32, |m, v| m.max(v.abs()));
+        let within_one = matches!(kind, FilterKind::Box) || (peak.is_finite() && peak * (1.0 + 1e-6) <= 1.0);
+        Filter { kind, radius, scale: (LUT - 1) as f32 / radius, segments, within_one }
     }
 
     pub fn catmull_rom() -> Filter {
@@ -113,6 +120,12 @@ impl Filter {
 
     pub fn radius(&self) -> f32 {
         self.radius
+    }
+
+    /// Whether every value of [`Filter::eval`] lies within ±1.
+    #[inline]
+    pub fn within_one(&self) -> bool {
+        self.within_one
     }
 
     #[inline]
@@ -145,6 +158,36 @@ mod tests {
                 assert!((f.eval(x) - f.kind.eval(x)).abs() < 2e-4, "{:?} at {x}", f.kind);
             }
         }
+    }
+
+    #[test]
+    fn within_one_holds_for_every_lookup() {
+        let kinds = [
+            FilterKind::Box,
+            FilterKind::Tent { radius: 1.5 },
+            FilterKind::Gaussian { stddev: 0.5, radius: 2.0 },
+            FilterKind::Gaussian { stddev: 0.3, radius: 1.2 },
+            FilterKind::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 },
+            FilterKind::Mitchell { b: 0.0, c: 0.5 },
+            FilterKind::Lanczos { lobes: 3 },
+        ];
+        let mut known = 0;
+        for k in kinds {
+            let f = Filter::new(k);
+            if !f.within_one() {
+                continue;
+            }
+            known += 1;
+            let r = f.radius();
+            for i in 0..200_000 {
+                let x = -r - 0.5 + (2.0 * r + 1.0) * i as f32 / 199_999.0;
+                for x in [x, f32::from_bits(x.to_bits() + 1), f32::from_bits(x.to_bits().saturating_sub(1))] {
+                    assert!(f.eval(x).abs() <= 1.0, "{k:?} at {x}: {}", f.eval(x));
+                }
+            }
+        }
+        // The box, the Gaussians and Mitchell's (B, C) = (⅓, ⅓) at least.
+        assert!(known >= 4, "{known}");
     }
 
     /// ∫ w(x) dx by the midpoint rule over [−radius, radius].

@@ -152,10 +152,9 @@ pub struct Queues<S: Spectrum> {
     throughput: Vec<S>,
     result: Vec<S>,
     eta: Vec<f32>,
-    prev_p: Vec<Vec3>,
-    prev_n: Vec<Vec3>,
-    prev_pdf: Vec<f32>,
-    prev_delta: Vec<bool>,
+    /// The previous vertex, for MIS at the next one: one record per path
+    /// (written together, read together).
+    prev: Vec<Prev>,
     ctx: Vec<BsdfContext>,
     si: Vec<SurfaceInteraction>,
     hit: Vec<bool>,
@@ -180,6 +179,36 @@ pub struct Queues<S: Spectrum> {
     /// Counting sort by BSDF.
     bsdf_of: Vec<u32>,
     counts: Vec<u32>,
+    /// Per emitter, whether [`kernels::area_light_directions`] may sample
+    /// it ([`KernelLight`]): the checks that do not depend on the shading
+    /// point, made once per scene rather than once per path and bounce.
+    kernel_lights: Vec<KernelLight>,
+    /// The scene `kernel_lights` was made for (its emitters' address and
+    /// count): a worker's queues serve one render, this guards the rule.
+    kernel_lights_of: (usize, usize),
+}
+
+/// A path's previous vertex: its point, shading normal, the density of the
+/// direction sampled there, and whether that sample was a delta lobe.
+#[derive(Clone, Copy, Debug)]
+struct Prev {
+    p: Vec3,
+    n: Vec3,
+    pdf: f32,
+    delta: bool,
+}
+
+/// Whether an emitter is an area light the SIMD kernel samples exactly as
+/// `AreaLight::sample_direct` would (see [`kernel_area_light`]).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum KernelLight {
+    /// Not one: sampled by the scalar code.
+    No,
+    /// Always (a mesh sampled by area).
+    Mesh,
+    /// A rectangle: by the kernel unless the shading point sees it wide
+    /// (then sampled by solid angle, by the scalar code).
+    Rect,
 }
 
 impl<S: Spectrum> Default for Queues<S> {
@@ -192,10 +221,7 @@ impl<S: Spectrum> Default for Queues<S> {
             throughput: Vec::with_capacity(BATCH),
             result: Vec::with_capacity(BATCH),
             eta: Vec::with_capacity(BATCH),
-            prev_p: Vec::with_capacity(BATCH),
-            prev_n: Vec::with_capacity(BATCH),
-            prev_pdf: Vec::with_capacity(BATCH),
-            prev_delta: Vec::with_capacity(BATCH),
+            prev: Vec::with_capacity(BATCH),
             ctx: Vec::with_capacity(BATCH),
             si: Vec::with_capacity(BATCH),
             hit: Vec::with_capacity(BATCH),
@@ -213,6 +239,8 @@ impl<S: Spectrum> Default for Queues<S> {
             diffuse_lane: Vec::with_capacity(BATCH),
             bsdf_of: Vec::with_capacity(BATCH),
             counts: vec![],
+            kernel_lights: vec![],
+            kernel_lights_of: (0, 0),
         }
     }
 }
@@ -269,14 +297,8 @@ fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u3
     q.result.resize(n, S::zero());
     q.eta.clear();
     q.eta.resize(n, 1.0);
-    q.prev_p.clear();
-    q.prev_p.extend(q.ray.iter().map(|r| r.o));
-    q.prev_n.clear();
-    q.prev_n.resize(n, Vec3::ZERO);
-    q.prev_pdf.clear();
-    q.prev_pdf.resize(n, 0.0);
-    q.prev_delta.clear();
-    q.prev_delta.resize(n, true);
+    q.prev.clear();
+    q.prev.extend(q.ray.iter().map(|r| Prev { p: r.o, n: Vec3::ZERO, pdf: 0.0, delta: true }));
     q.ctx.clear();
     q.ctx.resize(n, BsdfContext::RADIANCE);
     // Written by the trace before it is read: only grown, never cleared.
@@ -350,11 +372,12 @@ fn shade_hits<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Q
     q.next.clear();
     for &i in &q.live {
         let i = i as usize;
-        let prev = ShadingPoint { p: q.prev_p[i], n: q.prev_n[i] };
+        let pv = q.prev[i];
+        let prev = ShadingPoint { p: pv.p, n: pv.n };
         if !q.hit[i] {
             if visible {
                 if let Some(env) = scene.environment_radiance::<S>(q.ray[i].d, &q.wl[i]) {
-                    q.result[i] += q.throughput[i] * env * super::path::escaped_weight(scene, &prev, q.prev_pdf[i], q.prev_delta[i], q.ray[i].d);
+                    q.result[i] += q.throughput[i] * env * super::path::escaped_weight(scene, &prev, pv.pdf, pv.delta, q.ray[i].d);
                 }
             }
             continue;
@@ -362,7 +385,7 @@ fn shade_hits<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Q
         if visible {
             let si = &q.si[i];
             if let Some(le) = scene.emitted::<S>(si, &q.wl[i]) {
-                q.result[i] += q.throughput[i] * le * super::path::hit_weight(scene, &prev, q.prev_pdf[i], q.prev_delta[i], si);
+                q.result[i] += q.throughput[i] * le * super::path::hit_weight(scene, &prev, pv.pdf, pv.delta, si);
             }
         }
         if !last {
@@ -382,6 +405,12 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     q.shadow_sample.clear();
     q.shadow_ray.clear();
     q.area_meta.clear();
+    let key = (scene.emitters.as_ptr() as usize, scene.emitters.len());
+    if q.kernel_lights_of != key {
+        q.kernel_lights.clear();
+        q.kernel_lights.extend((0..scene.emitters.len()).map(|e| kernel_light(scene, e)));
+        q.kernel_lights_of = key;
+    }
     // Pass 1: the emitter's choice per path; area lights on meshes go to
     // the SIMD kernel, the others are sampled here.
     for &i in &q.live {
@@ -394,7 +423,7 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
         if bsdf.lobes().intersects(Lobe::SMOOTH) {
             let u = q.sampler[i].next_2d();
             let Some((index, pmf, ux)) = scene.select_emitter(u.x, &ShadingPoint::from(si)) else { continue };
-            if let Some(mesh) = kernel_area_light(scene, index, si.p) {
+            if let Some(mesh) = kernel_area_light(scene, &q.kernel_lights, index, si.p) {
                 let (tri, ux) = mesh.sample_triangle(ux);
                 let [a, b, c] = mesh.vertices(tri);
                 let tri_n = mesh.face_normal_at(tri, b - a, c - a);
@@ -484,10 +513,7 @@ fn advance<S: Spectrum>(q: &mut Queues<S>, i: usize, weight: S, eta: f32, pdf: f
     q.ctx[i] = q.ctx[i].following(lobe);
     q.throughput[i] *= weight;
     q.eta[i] *= eta;
-    q.prev_p[i] = si.p;
-    q.prev_n[i] = si.frame.n;
-    q.prev_pdf[i] = pdf;
-    q.prev_delta[i] = lobe.intersects(Lobe::DELTA);
+    q.prev[i] = Prev { p: si.p, n: si.frame.n, pdf, delta: lobe.intersects(Lobe::DELTA) };
     q.ray[i] = Ray::new(o, d);
     let t_max = q.throughput[i].max_component();
     if rr {
@@ -501,26 +527,42 @@ fn advance<S: Spectrum>(q: &mut Queues<S>, i: usize, weight: S, eta: f32, pdf: f
     t_max > 0.0
 }
 
-/// The mesh of emitter `index` if it is an area light that
-/// [`kernels::area_light_directions`] samples from `p` exactly as
-/// `AreaLight::sample_direct` would: constant radiance, not black, sampled
-/// by area from `p` (a rectangle seen wide is sampled by solid angle), on a
-/// mesh of positive area without vertex normals.
-#[inline]
-fn kernel_area_light(scene: &Scene, index: usize, p: Vec3) -> Option<&Mesh> {
-    let Emitter::Area(a) = &scene.emitters[index] else { return None };
+/// Whether emitter `index` is an area light that
+/// [`kernels::area_light_directions`] samples exactly as
+/// `AreaLight::sample_direct` would, as far as the shading point does not
+/// matter: constant radiance, not black, on a mesh of positive area
+/// without vertex normals (a rectangle only where it is not seen wide).
+fn kernel_light(scene: &Scene, index: usize) -> KernelLight {
+    let Emitter::Area(a) = &scene.emitters[index] else { return KernelLight::No };
     if a.texture.is_some() || a.is_black() {
+        return KernelLight::No;
+    }
+    let ShapeGeometry::Mesh(m) = &scene.shapes[a.shape as usize].geometry else { return KernelLight::No };
+    if m.normals.is_some() || m.triangles.is_empty() || !(m.area() > 0.0) {
+        return KernelLight::No;
+    }
+    if a.rect.is_some() { KernelLight::Rect } else { KernelLight::Mesh }
+}
+
+/// The mesh of emitter `index` if [`kernels::area_light_directions`]
+/// samples it from `p` exactly as `AreaLight::sample_direct` would: an
+/// emitter [`kernel_light`] accepts (`table`), and a rectangle not seen
+/// wide from `p` (that one is sampled by solid angle).
+#[inline]
+fn kernel_area_light<'s>(scene: &'s Scene, table: &[KernelLight], index: usize, p: Vec3) -> Option<&'s Mesh> {
+    let kind = *table.get(index)?;
+    if kind == KernelLight::No {
         return None;
     }
-    if let Some(r) = &a.rect {
-        if r.spherical(p).is_some() {
-            return None;
+    let Emitter::Area(a) = &scene.emitters[index] else { return None };
+    if kind == KernelLight::Rect {
+        if let Some(r) = &a.rect {
+            if r.spherical(p).is_some() {
+                return None;
+            }
         }
     }
     let ShapeGeometry::Mesh(m) = &scene.shapes[a.shape as usize].geometry else { return None };
-    if m.normals.is_some() || m.triangles.is_empty() || !(m.area() > 0.0) {
-        return None;
-    }
     Some(m)
 }
 
