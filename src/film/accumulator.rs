@@ -239,12 +239,17 @@ impl Sink {
             }
             let row = ((y0 - self.y0) as usize + j) * self.width + (x0 - self.x0) as usize;
             if narrow {
+                // wx·(wy·2^20) is (wx·wy)·2^20 to the bit: scaling by a power
+                // of two is exact, and where wx·wy would be subnormal both
+                // are below 1 and truncate to 0.
+                let wy_scaled = wy[j] * WEIGHT_SCALE;
                 // No sum can overflow: |sum| ≤ `load` ≤ i64::MAX.
                 for (n, &wxi) in self.narrow[row..row + nx].iter_mut().zip(&wx[..nx]) {
-                    // SAFETY: both weights are within ±1 (`in_range`), so the
-                    // product is within ±2^20, finite and representable: the
-                    // unchecked conversion truncates as `as` would.
-                    let w: i64 = unsafe { (wxi * wy[j] * WEIGHT_SCALE).to_int_unchecked() };
+                    // SAFETY: both weights are within ±1 (`within_one` or
+                    // `in_range`), so the product is within ±2^20, finite and
+                    // representable: the unchecked conversion truncates as
+                    // `as` would.
+                    let w: i64 = unsafe { (wxi * wy_scaled).to_int_unchecked() };
                     for k in 0..4 {
                         n[k] += w * v[k];
                     }

@@ -183,9 +183,13 @@ pub struct Queues<S: Spectrum> {
     /// it ([`KernelLight`]): the checks that do not depend on the shading
     /// point, made once per scene rather than once per path and bounce.
     kernel_lights: Vec<KernelLight>,
-    /// The scene `kernel_lights` was made for (its emitters' address and
-    /// count): a worker's queues serve one render, this guards the rule.
-    kernel_lights_of: (usize, usize),
+    /// Per shape, whether its BSDF (as `Scene::bsdf` picks it) has a
+    /// smooth lobe: next-event estimation happens there.
+    smooth_shape: Vec<bool>,
+    /// The scene these tables were made for (its emitters' and shapes'
+    /// addresses and counts): a worker's queues serve one render, this
+    /// guards the rule.
+    tables_of: [usize; 4],
 }
 
 /// A path's previous vertex: its point, shading normal, the density of the
@@ -240,7 +244,8 @@ impl<S: Spectrum> Default for Queues<S> {
             bsdf_of: Vec::with_capacity(BATCH),
             counts: vec![],
             kernel_lights: vec![],
-            kernel_lights_of: (0, 0),
+            smooth_shape: vec![],
+            tables_of: [0; 4],
         }
     }
 }
@@ -405,22 +410,28 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     q.shadow_sample.clear();
     q.shadow_ray.clear();
     q.area_meta.clear();
-    let key = (scene.emitters.as_ptr() as usize, scene.emitters.len());
-    if q.kernel_lights_of != key {
+    let key = [scene.emitters.as_ptr() as usize, scene.emitters.len(), scene.shapes.as_ptr() as usize, scene.shapes.len()];
+    if q.tables_of != key {
         q.kernel_lights.clear();
         q.kernel_lights.extend((0..scene.emitters.len()).map(|e| kernel_light(scene, e)));
-        q.kernel_lights_of = key;
+        q.smooth_shape.clear();
+        q.smooth_shape.extend(scene.shapes.iter().map(|sh| {
+            let Some(b) = scene.bsdfs.get(sh.bsdf as usize) else { return false };
+            let b = if sh.pass_through { b.surface() } else { b };
+            b.lobes().intersects(Lobe::SMOOTH)
+        }));
+        q.tables_of = key;
     }
     // Pass 1: the emitter's choice per path; area lights on meshes go to
     // the SIMD kernel, the others are sampled here.
     for &i in &q.live {
         let i = i as usize;
         let si = &q.si[i];
-        let bsdf = scene.bsdf(si);
-        if S::hero_wavelength(&q.wl[i]).is_some() && bsdf.disperses() {
+        if S::hero_wavelength(&q.wl[i]).is_some() && scene.bsdf(si).disperses() {
             S::terminate_secondary(&mut q.wl[i]);
         }
-        if bsdf.lobes().intersects(Lobe::SMOOTH) {
+        // As `scene.bsdf(si).lobes().intersects(Lobe::SMOOTH)`.
+        if q.smooth_shape.get(si.shape as usize).copied().unwrap_or(false) {
             let u = q.sampler[i].next_2d();
             let Some((index, pmf, ux)) = scene.select_emitter(u.x, &ShadingPoint::from(si)) else { continue };
             if let Some(mesh) = kernel_area_light(scene, &q.kernel_lights, index, si.p) {
