@@ -361,6 +361,10 @@ pub(crate) fn permute(mut i: u32, n: u32, seed: u32) -> u32 {
             break;
         }
     }
+    if n.is_power_of_two() {
+        // (i + p) mod n without a division: 2^32 is a multiple of n.
+        return i.wrapping_add(p) & (n - 1);
+    }
     ((i as u64 + p as u64) % n as u64) as u32
 }
 
