@@ -128,6 +128,10 @@ pub struct RenderStats {
     pub threads: usize,
     /// Rendering only: excludes loading the scene and building the BVH.
     pub render_seconds: f64,
+    /// The process's CPU seconds (user + system, all threads) over the same
+    /// span as `render_seconds`: the figure to set against another
+    /// renderer's render-call CPU time, startup and loading excluded.
+    pub render_cpu_seconds: f64,
     pub samples_per_second: f64,
     /// Samples whose estimate was NaN or infinite, replaced by zero.
     pub invalid_samples: u64,
@@ -147,7 +151,7 @@ impl RenderStats {
     /// A render of `scene` at `spp` samples per pixel that took `rendered`
     /// samples (camera samples, or light paths) in `seconds`, its image being
     /// that of `result`.
-    fn new(scene: &Scene, spp: u32, threads: usize, seconds: f64, rendered: u64, result: &FilmState) -> RenderStats {
+    fn new(scene: &Scene, spp: u32, threads: usize, seconds: f64, cpu_seconds: f64, rendered: u64, result: &FilmState) -> RenderStats {
         let planned = scene.film.crop[2] as u64 * scene.film.crop[3] as u64 * spp as u64;
         let taken = result.header.samples_taken;
         RenderStats {
@@ -160,10 +164,26 @@ impl RenderStats {
             spp,
             threads,
             render_seconds: seconds,
+            render_cpu_seconds: cpu_seconds,
             samples_per_second: if seconds > 0.0 { rendered as f64 / seconds } else { 0.0 },
             invalid_samples: result.header.invalid_samples,
         }
     }
+}
+
+/// CPU seconds (user + system) the process has used so far, all threads
+/// together (`getrusage`); 0 where that is not available.
+pub(crate) fn process_cpu_seconds() -> f64 {
+    #[cfg(unix)]
+    {
+        // SAFETY: getrusage only writes the struct it is given.
+        let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+        if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut usage) } == 0 {
+            let seconds = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+            return seconds(usage.ru_utime) + seconds(usage.ru_stime);
+        }
+    }
+    0.0
 }
 
 pub(crate) fn thread_count(options: &RenderOptions) -> usize {
@@ -255,7 +275,10 @@ pub fn render_progressive<S: Spectrum>(
             anyhow::bail!("cannot resume: sppm's progressive state (per-pixel radii, photon counts and flux) is not saved in a film state; render from the start");
         }
         check_memory(scene, S::POLARIZED, true)?;
-        return crate::integrator::sppm::render::<S>(scene, sppm, options, on_pass);
+        let cpu = process_cpu_seconds();
+        let (image, mut stats, state) = crate::integrator::sppm::render::<S>(scene, sppm, options, on_pass)?;
+        stats.render_cpu_seconds = process_cpu_seconds() - cpu;
+        return Ok((image, stats, state));
     }
     let spp = scene.sampler.sample_count;
     let threads = thread_count(options);
@@ -286,6 +309,7 @@ pub fn render_progressive<S: Spectrum>(
     let pixels = scene.film.crop[2] as u64 * scene.film.crop[3] as u64;
     let bar = progress_bar(options, pixels * (spp - state.spp().min(spp)) as u64);
     let start = Instant::now();
+    let cpu_start = process_cpu_seconds();
     let mut rendered = 0u64;
     let mut partial = None;
     for (k, (_, holes)) in schedule.iter().enumerate() {
@@ -324,9 +348,10 @@ pub fn render_progressive<S: Spectrum>(
         }
     }
     let seconds = start.elapsed().as_secs_f64();
+    let cpu_seconds = process_cpu_seconds() - cpu_start;
     bar.finish_and_clear();
     let result = partial.unwrap_or(state);
-    let stats = RenderStats::new(scene, spp, threads, seconds, rendered, &result);
+    let stats = RenderStats::new(scene, spp, threads, seconds, cpu_seconds, rendered, &result);
     Ok((result.develop(), stats, result))
 }
 

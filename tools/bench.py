@@ -51,7 +51,10 @@ Mitsuba's independent, multijitter and ldsampler, in the same run, and prints
 relMSE = mean over pixels and channels of (x − ref)² / (ref² + 0.01), averaged
 over the runs; seconds the median render time (Snell: render_seconds of
 --stats; Mitsuba: mi.render + dr.eval, after a warm-up render that compiles the
-kernels; --cpu-time: their CPU time / threads, fairer on a loaded machine).
+kernels; --cpu-time: the CPU time of the same spans / threads, fairer on a
+loaded machine: Snell's render_cpu_seconds, its render loop's process CPU, and
+Mitsuba's process CPU over mi.render + dr.eval; Snell's whole-process CPU,
+startup and loading included, is printed beside it).
 Defaults there: 128², 64 spp, reference 16384 spp.
 
 Usage: python3 tools/bench.py [--runs 3] [--scene scenes/cornell-box.xml]...
@@ -543,9 +546,12 @@ def snell_images(args, scene, params, sampler, spp, seeds, out, variant=""):
                 print(r.stdout)
                 sys.exit(f"snell failed with exit code {r.returncode}")
             with open("/tmp/stats.json") as f:
-                wall = float(json.load(f)["render_seconds"])
-            cpu = (after.children_user + after.children_system) - (before.children_user + before.children_system)
-            secs.append((wall, cpu))
+                st = json.load(f)
+            wall = float(st["render_seconds"])
+            process = (after.children_user + after.children_system) - (before.children_user + before.children_system)
+            # The render loop's CPU (as Mitsuba's mi.render's below); the
+            # whole process's (startup, loading, BVH, writing) beside it.
+            secs.append((wall, float(st.get("render_cpu_seconds", process)), process))
             files.append(pfm)
     finally:
         os.remove(path)
@@ -658,14 +664,16 @@ def efficiency_scene(args, scene):
             os.remove(fpath)
         e = statistics.mean(errs)
         wall, cpu = statistics.median(s[0] for s in secs), statistics.median(s[1] for s in secs)
+        process = statistics.median(s[2] if len(s) > 2 else s[1] for s in secs)
         t = cpu / args.threads if args.cpu_time else wall
         if variant:
             sampler = f"{sampler}+{variant}"
         row = {"renderer": who, "sampler": sampler, "rel_mse": e, "seconds": t, "wall_seconds": wall,
-               "cpu_seconds": cpu, "efficiency": 1.0 / (e * t)}
+               "cpu_seconds": cpu, "process_cpu_seconds": process, "efficiency": 1.0 / (e * t)}
         rows.append(row)
+        outside = f"  (process cpu {process:7.3f} s)" if who == "snell" else ""
         print(f"  {who:<8} {sampler:<34} relMSE {e:.4e}  wall {wall:7.3f} s  cpu {cpu:7.3f} s  "
-              f"efficiency {row['efficiency']:10.1f}")
+              f"efficiency {row['efficiency']:10.1f}{outside}")
     os.remove(ref[1][0])
     mits = [r for r in rows if r["renderer"] == "mitsuba"]
     best = max(mits, key=lambda r: r["efficiency"]) if mits else None

@@ -796,6 +796,7 @@ pub fn render<S: Spectrum>(
         spp: iterations,
         threads,
         render_seconds: seconds,
+        render_cpu_seconds: 0.0, // measured by the caller, render::render_progressive
         samples_per_second: if seconds > 0.0 {
             taken as f64 / seconds
         } else {

@@ -332,6 +332,10 @@ pub(crate) fn permute(mut i: u32, n: u32, seed: u32) -> u32 {
         return 0;
     }
     let p = seed;
+    if n.is_power_of_two() {
+        // One round: the hash is a bijection on [0, n), no cycle walk.
+        return (kensler_round(i, p, n - 1)).wrapping_add(p) & (n - 1);
+    }
     let mut w = n - 1;
     w |= w >> 1;
     w |= w >> 2;
@@ -339,29 +343,38 @@ pub(crate) fn permute(mut i: u32, n: u32, seed: u32) -> u32 {
     w |= w >> 8;
     w |= w >> 16;
     loop {
-        i ^= p;
-        i = i.wrapping_mul(0xe170_893d);
-        i ^= p >> 16;
-        i ^= (i & w) >> 4;
-        i ^= p >> 8;
-        i = i.wrapping_mul(0x0929_eb3f);
-        i ^= p >> 23;
-        i ^= (i & w) >> 1;
-        i = i.wrapping_mul(1 | p >> 27);
-        i = i.wrapping_mul(0x6935_fa69);
-        i ^= (i & w) >> 11;
-        i = i.wrapping_mul(0x74dc_b303);
-        i ^= (i & w) >> 2;
-        i = i.wrapping_mul(0x9e50_1cc3);
-        i ^= (i & w) >> 2;
-        i = i.wrapping_mul(0xc860_a3df);
-        i &= w;
-        i ^= i >> 5;
+        i = kensler_round(i, p, w);
         if i < n {
             break;
         }
     }
     ((i as u64 + p as u64) % n as u64) as u32
+}
+
+/// One round of [`permute`]'s hash: a bijection on [0, w] (w + 1 a power of
+/// two). For n = w + 1 the caller's (i + p) mod n is a mask (2^32 is a
+/// multiple of n).
+#[inline(always)]
+fn kensler_round(mut i: u32, p: u32, w: u32) -> u32 {
+    i ^= p;
+    i = i.wrapping_mul(0xe170_893d);
+    i ^= p >> 16;
+    i ^= (i & w) >> 4;
+    i ^= p >> 8;
+    i = i.wrapping_mul(0x0929_eb3f);
+    i ^= p >> 23;
+    i ^= (i & w) >> 1;
+    i = i.wrapping_mul(1 | p >> 27);
+    i = i.wrapping_mul(0x6935_fa69);
+    i ^= (i & w) >> 11;
+    i = i.wrapping_mul(0x74dc_b303);
+    i ^= (i & w) >> 2;
+    i = i.wrapping_mul(0x9e50_1cc3);
+    i ^= (i & w) >> 2;
+    i = i.wrapping_mul(0xc860_a3df);
+    i &= w;
+    i ^= i >> 5;
+    i
 }
 
 /// 64 random bits for dimension `dim` of a sequence (permutation seeds).

@@ -52,6 +52,9 @@ pub(crate) struct Multijitter {
     id: SampleId,
     cols: u32,
     rows: u32,
+    /// 1/cols, 1/rows and 1/count when all three are powers of two (then
+    /// multiplying by them is exactly dividing), else `None`.
+    inverses: Option<(f32, f32, f32)>,
     jitter: bool,
     pub(super) dim: u32,
 }
@@ -59,7 +62,9 @@ pub(crate) struct Multijitter {
 impl Multijitter {
     pub fn start(id: SampleId, jitter: bool) -> Multijitter {
         let (cols, rows) = grid(id.count);
-        Multijitter { id, cols, rows, jitter, dim: 0 }
+        let inverses = (cols.is_power_of_two() && rows.is_power_of_two())
+            .then(|| (1.0 / cols as f32, 1.0 / rows as f32, 1.0 / id.count as f32));
+        Multijitter { id, cols, rows, inverses, jitter, dim: 0 }
     }
 
     fn offset(&self) -> (f32, f32) {
@@ -69,7 +74,12 @@ impl Multijitter {
     #[inline]
     pub fn next_1d(&mut self) -> f32 {
         let s = permute(self.id.index, self.id.count, dim_hash(self.id.pixel_seed, self.dim) as u32);
-        let v = ((s as f32 + self.offset().0) / self.id.count as f32).min(ONE_MINUS_EPSILON);
+        let t = s as f32 + self.offset().0;
+        let v = match self.inverses {
+            Some((_, _, inv_n)) => t * inv_n,
+            None => t / self.id.count as f32,
+        };
+        let v = v.min(ONE_MINUS_EPSILON);
         self.dim += 1;
         v
     }
@@ -80,12 +90,16 @@ impl Multijitter {
         let h = dim_hash(self.id.pixel_seed, self.dim);
         let s = permute(self.id.index, self.id.count, h as u32);
         let (m, k) = (self.cols, self.rows);
-        let (cx, cy) = (s % m, s / m);
+        // m a power of two: the cell by a mask and a shift, not a division.
+        let (cx, cy) = if m.is_power_of_two() { (s & (m - 1), s >> m.trailing_zeros()) } else { (s % m, s / m) };
         let sx = permute(cy, k, (h >> 32) as u32);
         let sy = permute(cx, m, ((h >> 16) as u32).wrapping_mul(0x68bc_21eb));
         let (jx, jy) = self.offset();
-        let x = (cx as f32 + (sx as f32 + jx) / k as f32) / m as f32;
-        let y = (cy as f32 + (sy as f32 + jy) / m as f32) / k as f32;
+        let (x, y) = match self.inverses {
+            // Powers of two: multiplying by the exact inverse is the division.
+            Some((inv_m, inv_k, _)) => ((cx as f32 + (sx as f32 + jx) * inv_k) * inv_m, (cy as f32 + (sy as f32 + jy) * inv_m) * inv_k),
+            None => ((cx as f32 + (sx as f32 + jx) / k as f32) / m as f32, (cy as f32 + (sy as f32 + jy) / m as f32) / k as f32),
+        };
         self.dim += 1;
         Vec2::new(x.min(ONE_MINUS_EPSILON), y.min(ONE_MINUS_EPSILON))
     }

@@ -91,8 +91,9 @@ fn sobol1_by_columns(mut index: u64) -> u32 {
 
 /// Owen scrambling of 32 fraction bits by a hash (Burley 2020, with the
 /// Laine–Karras style hash on the reversed bits: each output bit is flipped
-/// by a function of the seed and the bits above it only).
-#[inline]
+/// by a function of the seed and the bits above it only). The definition:
+/// the draws apply [`laine_karras`] to bit-reversed values directly.
+#[cfg(test)]
 pub(crate) fn owen_scramble(x: u32, seed: u32) -> u32 {
     laine_karras(x.reverse_bits(), seed).reverse_bits()
 }
@@ -134,13 +135,18 @@ impl Sobol {
     #[inline]
     pub fn next_1d(&mut self) -> f32 {
         let (i, a, _) = self.draw();
-        unit(owen_scramble(sobol0(i), a))
+        // owen_scramble(sobol0(i), a) without its two cancelling bit reversals.
+        unit(laine_karras(i as u32, a).reverse_bits())
     }
 
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         let (i, a, b) = self.draw();
-        Vec2::new(unit(owen_scramble(sobol0(i), a)), unit(owen_scramble(sobol1(i), b)))
+        // owen_scramble of dimensions 0 and 1 on reversed bits (dimension
+        // 0's reversal cancels, dimension 1's superset transform comes out
+        // reversed), and one 64-bit reversal for the two.
+        let both = (((laine_karras(i as u32, a) as u64) << 32) | laine_karras(sobol1_reversed(i), b) as u64).reverse_bits();
+        Vec2::new(unit(both as u32), unit((both >> 32) as u32))
     }
 }
 
@@ -171,6 +177,25 @@ mod tests {
             // Indices of every size: all 64 bits, and the small ones pixels use.
             for idx in [i, x, x >> (x % 64), x & 0xfffff] {
                 assert_eq!(sobol1(idx), sobol1_by_columns(idx), "index {idx:#x}");
+            }
+        }
+    }
+
+    #[test]
+    fn draws_equal_the_scrambled_definition() {
+        // next_1d / next_2d skip bit reversals that cancel: the same points
+        // as owen_scramble(sobol0/1(i)) of the draw's index and seeds.
+        let spec = spec(SamplerKind::Sobol, 64, 4);
+        for index in [0u32, 1, 17, 63, 64, 200] {
+            let id = SampleId::new(&spec, 64, 5, 6, index);
+            let (mut fast, mut slow) = (Sobol::start(id), Sobol::start(id));
+            for d in 0..40 {
+                let (i, a, b) = slow.draw();
+                if d % 3 == 1 {
+                    assert_eq!(fast.next_1d(), unit(owen_scramble(sobol0(i), a)));
+                } else {
+                    assert_eq!(fast.next_2d(), Vec2::new(unit(owen_scramble(sobol0(i), a)), unit(owen_scramble(sobol1(i), b))));
+                }
             }
         }
     }
