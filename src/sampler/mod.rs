@@ -106,6 +106,19 @@ impl SamplerKind {
             _ => n,
         }
     }
+
+    /// The count a sample's pattern is built for when the film takes `n`
+    /// samples per pixel. `n` has been rounded once already (by
+    /// [`SamplerSpec::set_sample_count`]); rounding is idempotent for every
+    /// kind but `multijitter`, whose Mitsuba rounding is not (26 → 28 → 36)
+    /// and whose grid takes any count, so it keeps `n`: a pattern of 36 cut
+    /// to the 28 samples taken would lose its strata.
+    fn pattern_count(&self, n: u32) -> u32 {
+        match *self {
+            SamplerKind::Multijitter { .. } => n.max(1),
+            _ => self.round_sample_count(n),
+        }
+    }
 }
 
 impl SamplerSpec {
@@ -200,7 +213,7 @@ impl Sampler {
     /// render there). Light tracing addresses its paths the same way, with
     /// its own pixel numbering.
     pub fn start(spec: &SamplerSpec, x: u32, y: u32, index: u32) -> Sampler {
-        let count = spec.kind.round_sample_count(spec.sample_count);
+        let count = spec.kind.pattern_count(spec.sample_count);
         let id = || SampleId::new(spec, count, x, y, index);
         let method = match spec.kind {
             SamplerKind::Independent => Method::Independent(independent::Independent::start(spec.seed, x, y, index)),

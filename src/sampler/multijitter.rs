@@ -117,11 +117,13 @@ mod tests {
         assert_eq!([1, 4, 8, 10, 16, 64, 100, 256].map(super::round_sample_count), [1, 4, 8, 12, 16, 64, 112, 288]);
         assert_eq!(super::grid(112), (8, 14));
         assert_eq!(super::grid(64), (8, 8));
+        assert_eq!(super::round_sample_count(26), 28);
     }
 
     #[test]
     fn every_cell_and_every_1d_stratum_is_hit_once() {
-        for n in [4, 16, 64, 112] {
+        // 26 rounds to 28, which a second rounding would take to 36.
+        for n in [4, 16, 26, 64, 112] {
             let spec = spec(KIND, n, 9);
             let (m, k) = super::grid(spec.sample_count);
             for pattern in [&[][..], &[false, true, false]] {
