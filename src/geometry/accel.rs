@@ -324,7 +324,14 @@ pub struct Accel {
     /// The tree's SAH cost (a node visit 1, a leaf packet or other
     /// primitive 1), for `stats`.
     sah: f64,
+    /// Whether the traversal prefetches the children it pushes
+    /// (`Accel::prefetch`).
+    prefetches: bool,
 }
+
+/// BVHs whose nodes and lanes take more bytes than this (about a core's
+/// L2 cache) prefetch the children they push.
+const PREFETCH_MIN_BYTES: usize = 1 << 20;
 
 #[cfg(feature = "trav-stats")]
 impl Drop for Accel {
@@ -726,6 +733,7 @@ impl Accel {
             extent: (extent.lo.into(), extent.hi.into()),
             level: SimdLevel::current(),
             sah: 0.0,
+            prefetches: false,
         };
         if items.is_empty() {
             return accel;
@@ -753,6 +761,7 @@ impl Accel {
         if quantizes(n_tris) {
             accel.quantize_nodes_here();
         }
+        accel.prefetches = accel.nodes.len() * std::mem::size_of::<Node>() + accel.lanes.f.len() * 4 > PREFETCH_MIN_BYTES;
         accel
     }
 
@@ -851,6 +860,38 @@ impl Accel {
             }
         }
         TriPacket::new([l[0], l[1], l[2]], [l[3], l[4], l[5]], [l[6], l[7], l[8]])
+    }
+
+    /// Asks the cache for child `c` (a full node, or the lanes of a
+    /// `DIRECT` leaf that keeps them) ahead of its visit: the traversal
+    /// pushes the children it will visit later, and their loads, mostly
+    /// misses on big meshes, then overlap with the work on the nearest.
+    /// Only in BVHs bigger than `PREFETCH_MIN_BYTES`: in small ones
+    /// everything is in cache and the prefetches cost (Cornell box: 4 %
+    /// more CPU time; 1 M-triangle mesh: 4 % less).
+    #[inline(always)]
+    fn prefetch(&self, c: u32) {
+        if !self.prefetches {
+            return;
+        }
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            let (p, lines) = if c & LEAF == 0 {
+                (self.nodes.as_ptr().wrapping_add(c as usize) as *const i8, 4)
+            } else if c & DIRECT != 0 && !self.lanes.f.is_empty() {
+                let first = ((c & !(LEAF | DIRECT)) >> 3) as usize;
+                (self.lanes.f.as_ptr().wrapping_add(first / PACKET * BLOCK) as *const i8, 5)
+            } else {
+                return;
+            };
+            for k in 0..lines {
+                // SAFETY: a prefetch never faults, whatever the address.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64 * k)) };
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = c;
     }
 
     /// Drops the stored packets (also of the instanced groups): the traversal
@@ -1211,6 +1252,9 @@ impl Accel {
                         k += 1;
                     }
                     for &key in &keys[..k - 1] {
+                        if !Q {
+                            self.prefetch(key as u32);
+                        }
                         stack[sp].write(key);
                         sp += 1;
                     }
@@ -1332,7 +1376,11 @@ impl Accel {
                     cur = children[mask.trailing_zeros() as usize];
                     mask &= mask - 1;
                     while mask != 0 {
-                        stack[sp].write(children[mask.trailing_zeros() as usize]);
+                        let c = children[mask.trailing_zeros() as usize];
+                        if !Q {
+                            self.prefetch(c);
+                        }
+                        stack[sp].write(c);
                         sp += 1;
                         mask &= mask - 1;
                     }

@@ -229,6 +229,7 @@ impl Accel {
                 }
                 if k > 0 {
                     for e in &entered[..k - 1] {
+                        self.prefetch(e.1);
                         stack[sp].write((e.1, e.2, e.3));
                         sp += 1;
                     }
@@ -387,6 +388,7 @@ impl Accel {
                     match first {
                         None => first = Some((child, enter)),
                         Some(_) => {
+                            self.prefetch(child);
                             stack[sp] = (child, enter);
                             sp += 1;
                         }
