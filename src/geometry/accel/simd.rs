@@ -47,6 +47,8 @@ pub trait Lanes: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = S
     /// The sign bits alone.
     fn sign(self) -> Self;
     fn xor(self, o: Self) -> Self;
+    /// Lanes `o .. o + 8` of the sixteen of `self` then `hi` (`o` < 8).
+    fn window(self, hi: Self, o: usize) -> Self;
 }
 
 /// An instruction-set level of the traversal.
@@ -192,6 +194,17 @@ mod avx {
         fn xor(self, o: Avx) -> Avx {
             Avx(unsafe { _mm256_xor_ps(self.0, o.0) })
         }
+        #[inline(always)]
+        fn window(self, hi: Avx, o: usize) -> Avx {
+            // Both rotated left by o; lane j takes `hi` where j + o ≥ 8,
+            // that is where the rotated index (j + o) mod 8 is below o.
+            unsafe {
+                let o = _mm256_set1_epi32(o as i32);
+                let idx = _mm256_and_si256(_mm256_add_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), o), _mm256_set1_epi32(7));
+                let take_hi = _mm256_castsi256_ps(_mm256_cmpgt_epi32(o, idx));
+                Avx(_mm256_blendv_ps(_mm256_permutevar8x32_ps(self.0, idx), _mm256_permutevar8x32_ps(hi.0, idx), take_hi))
+            }
+        }
     }
 
     macro_rules! binop {
@@ -293,6 +306,10 @@ impl Lanes for Portable {
     fn xor(self, o: Portable) -> Portable {
         map2(self, o, |a, b| f32::from_bits(a.to_bits() ^ b.to_bits()))
     }
+    #[inline(always)]
+    fn window(self, hi: Portable, o: usize) -> Portable {
+        Portable(std::array::from_fn(|i| if i + o < 8 { self.0[i + o] } else { hi.0[i + o - 8] }))
+    }
 }
 
 impl BitAnd for Portable {
@@ -349,6 +366,11 @@ mod tests {
         assert_eq!(a.sign().bitmask(), 0b0010_1010);
         assert_eq!(a.xor(a.sign()).to_array(), a.to_array().map(f32::abs));
         assert_eq!(F::load(&[4.0; 8]).to_array(), [4.0; 8]);
+        let hi = F::from_array([8.0, 9.0, 10.0, 11.0, 12.0, 13.0, 14.0, 15.0]);
+        let lo = F::from_array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
+        for o in 0..8 {
+            assert_eq!(lo.window(hi, o).to_array(), std::array::from_fn(|i| (i + o) as f32), "window at {o}");
+        }
         assert_eq!(F::from_u8(&[0, 1, 2, 127, 128, 200, 254, 255]).to_array(), [0.0, 1.0, 2.0, 127.0, 128.0, 200.0, 254.0, 255.0]);
     }
 

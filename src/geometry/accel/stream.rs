@@ -31,6 +31,7 @@
 //! the single-ray queries. Scenes with instances or quantized nodes take
 //! the single-ray traversal for both queries.
 
+use super::stats::{self, count};
 use super::{Accel, Closest, Hit, LEAF, Lanes, Node, RayData, STACK, WIDTH, lanes_of};
 #[cfg(target_arch = "x86_64")]
 use super::Avx;
@@ -169,6 +170,8 @@ impl Accel {
         let zero = V::splat(0.0);
         let far = V::splat(super::FAR);
         let all = lanes_of(n);
+        let min_rays = packet_min();
+        count!(stats::CLOSEST_PACKET, stats::RAYS, n);
         // Pending nodes: child word and the mask of rays entering it, and
         // those rays' entry distances (to drop the rays whose hit came
         // nearer since).
@@ -176,8 +179,30 @@ impl Accel {
         let mut sp = 0usize;
         let (mut cur, mut active) = (0u32, all);
         loop {
-            if cur & LEAF == 0 {
+            if cur & LEAF == 0 && active.count_ones() < min_rays {
+                // Too few rays left for the packet to pay: each goes on
+                // alone below this node.
+                let mut m = active;
+                let mut changed = false;
+                count!(stats::CLOSEST_PACKET, stats::SPLIT_OFF, active.count_ones());
+                while m != 0 {
+                    let k = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    // SAFETY: lanes of `active` are below `n`, written above.
+                    let r = unsafe { rd[k].assume_init_ref() };
+                    let before = best[k].t;
+                    self.closest_from::<false, false, V>(r, &rays[k], &mut best[k], cur, stats::CLOSEST_PACKET);
+                    if best[k].t != before {
+                        reach[k] = best[k].reach();
+                        changed = true;
+                    }
+                }
+                if changed {
+                    reach_v = V::from_array(reach);
+                }
+            } else if cur & LEAF == 0 {
                 let node = &self.nodes[cur as usize];
+                count!(stats::CLOSEST_PACKET, stats::NODES, active.count_ones());
                 let mut entered = [(0.0f32, 0u32, 0u32, zero); WIDTH];
                 let mut k = 0;
                 for c in 0..WIDTH {
@@ -185,6 +210,7 @@ impl Accel {
                     if node.b[0][c] > node.b[3][c] {
                         continue;
                     }
+                    count!(stats::CLOSEST_PACKET, stats::BOXES, RAYS);
                     let (tnear, tfar) = slabs.child(node, c, reach_v);
                     let enter = tnear.le(tfar * far).bitmask() & active;
                     if enter == 0 {
@@ -203,6 +229,7 @@ impl Accel {
                 }
                 if k > 0 {
                     for e in &entered[..k - 1] {
+                        self.prefetch(e.1);
                         stack[sp].write((e.1, e.2, e.3));
                         sp += 1;
                     }
@@ -218,7 +245,7 @@ impl Accel {
                     // SAFETY: lanes of `active` are below `n`, written above.
                     let r = unsafe { rd[k].assume_init_ref() };
                     let before = best[k].t;
-                    self.leaf_closest::<false, V>(cur, r, &rays[k], &mut best[k]);
+                    self.leaf_closest::<false, V>(cur, r, &rays[k], &mut best[k], stats::CLOSEST_PACKET);
                     if best[k].t != before {
                         reach[k] = best[k].reach();
                         changed = true;
@@ -304,12 +331,47 @@ impl Accel {
         let far = V::splat(super::FAR);
         let mut blocked = 0u32;
         let all = lanes_of(n);
+        let min_rays = packet_min();
+        count!(stats::OCCLUDED_PACKET, stats::RAYS, n);
+        // The single-ray lanes of each ray, made when a leaf or a split
+        // first needs them (the mask `made`).
+        let mut rd: [MaybeUninit<RayData<V>>; RAYS] = [const { MaybeUninit::uninit() }; RAYS];
+        let mut made = 0u32;
         let mut stack = [(0u32, 0u32); STACK];
         let mut sp = 0usize;
         let (mut cur, mut active) = (0u32, all);
         loop {
-            if cur & LEAF == 0 {
+            if cur & LEAF != 0 || active.count_ones() < min_rays {
+                // A leaf, or too few rays left for the packet to pay: each
+                // ray goes on alone.
+                if cur & LEAF == 0 {
+                    count!(stats::OCCLUDED_PACKET, stats::SPLIT_OFF, active.count_ones());
+                }
+                let mut m = active;
+                while m != 0 {
+                    let k = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    if made & (1 << k) == 0 {
+                        rd[k].write(RayData::<V>::new(&rays[k]));
+                        made |= 1 << k;
+                    }
+                    // SAFETY: written just above or before (`made`).
+                    let r = unsafe { rd[k].assume_init_ref() };
+                    let hit = if cur & LEAF != 0 {
+                        self.leaf_occludes::<false, V>(cur, r, &rays[k], rays[k].tmax, stats::OCCLUDED_PACKET)
+                    } else {
+                        self.any_hit_from::<false, false, V>(r, &rays[k], cur, stats::OCCLUDED_PACKET)
+                    };
+                    if hit {
+                        blocked |= 1 << k;
+                    }
+                }
+                if blocked == all {
+                    return blocked;
+                }
+            } else {
                 let node = &self.nodes[cur as usize];
+                count!(stats::OCCLUDED_PACKET, stats::NODES, active.count_ones());
                 let mut first = None;
                 for c in 0..WIDTH {
                     let child = node.children[c];
@@ -317,6 +379,7 @@ impl Accel {
                     if node.b[0][c] > node.b[3][c] {
                         continue;
                     }
+                    count!(stats::OCCLUDED_PACKET, stats::BOXES, RAYS);
                     let (tnear, tfar) = slabs.child(node, c, tmax);
                     let enter = tnear.le(tfar * far).bitmask() & active;
                     if enter == 0 {
@@ -325,6 +388,7 @@ impl Accel {
                     match first {
                         None => first = Some((child, enter)),
                         Some(_) => {
+                            self.prefetch(child);
                             stack[sp] = (child, enter);
                             sp += 1;
                         }
@@ -334,18 +398,6 @@ impl Accel {
                     cur = child;
                     active = enter;
                     continue;
-                }
-            } else {
-                let mut m = active;
-                while m != 0 {
-                    let k = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    if blocked & (1 << k) == 0 && self.leaf_occludes::<false, V>(cur, &RayData::<V>::new(&rays[k]), &rays[k], rays[k].tmax) {
-                        blocked |= 1 << k;
-                    }
-                }
-                if blocked == all {
-                    return blocked;
                 }
             }
             // Pop a pending node some unoccluded ray still enters.
@@ -382,6 +434,19 @@ fn coherent(rays: &[Ray]) -> bool {
     }
     ok
 }
+
+/// A packet that reaches a node with fewer rays than this still entering
+/// it hands them to the single-ray traversal below it: a packet tests each
+/// child box against all 8 lanes, a single ray all 8 boxes at once, so a
+/// packet only pays while most of its rays go the same way.
+/// `SNELL_PACKET_MIN` sets it (0 keeps every packet whole, 9 traces every
+/// ray alone; for measurements, the hits are the same).
+fn packet_min() -> u32 {
+    static MIN: OnceLock<u32> = OnceLock::new();
+    *MIN.get_or_init(|| std::env::var("SNELL_PACKET_MIN").ok().and_then(|v| v.trim().parse().ok()).unwrap_or(DEFAULT_PACKET_MIN))
+}
+
+const DEFAULT_PACKET_MIN: u32 = 4;
 
 /// `SNELL_PACKETS=0` traces every closest hit as a single ray (for
 /// measurements; the hits are the same).
