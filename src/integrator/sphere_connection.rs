@@ -564,15 +564,7 @@ fn connect_one<S: Spectrum>(
     } else {
         1.0
     };
-    let mut tau_pow = tau * tau;
-    for p in 0..=max_chords {
-        if p >= 2 {
-            tau_pow *= rho;
-        }
-        let scale = if p == 0 { rho } else { tau_pow };
-        if scale.is_zero() {
-            continue;
-        }
+    for (p, scale) in chord_weights(rho, tau, max_chords) {
         for s in [1.0f64, -1.0] {
             let u = u_plus * s;
             let plane = Plane {
@@ -627,9 +619,7 @@ fn connect_beam<S: Spectrum>(
     wl: &S::Wavelengths,
     splat: &mut impl FnMut(Vec2, Rgb),
 ) {
-    if !(n > 0.0) || (n - 1.0).abs() < 1e-9 {
-        return;
-    }
+    // (n was checked by `connect_one`, the only caller.)
     let (c, a) = (hit.center.as_dvec3(), hit.radius as f64);
     let d = d.as_dvec3().normalize();
     let eye = camera.origin().as_dvec3();
@@ -646,15 +636,7 @@ fn connect_beam<S: Spectrum>(
     let Some((theta0, _, _)) = frame(c) else {
         return;
     };
-    let mut tau_pow = tau * tau;
-    for p in 0..=max_chords {
-        if p >= 2 {
-            tau_pow *= rho;
-        }
-        let scale = if p == 0 { rho } else { tau_pow };
-        if scale.is_zero() {
-            continue;
-        }
+    for (p, scale) in chord_weights(rho, tau, max_chords) {
         let (ps, _) = pieces(p, n);
         roots(p, n, theta0, &mut |piece, s, shift, x0| {
             // Fixed-point rounds: aim from the exit point, not the centre.
@@ -705,6 +687,21 @@ fn connect_beam<S: Spectrum>(
             splat_exit(scene, camera, c, a, e, irradiance, beta * scale, wl, splat);
         });
     }
+}
+
+/// The weight of each number of chords p = 0..=max_chords inside the
+/// sphere: ρ for the reflection off the surface (p = 0), τ²ρ^(p−1) for a
+/// ray that enters, reflects p − 1 times inside and leaves; zero weights
+/// are skipped.
+fn chord_weights<S: Spectrum>(rho: S, tau: S, max_chords: u32) -> impl Iterator<Item = (u32, S)> {
+    let mut tau_pow = tau * tau;
+    (0..=max_chords).filter_map(move |p| {
+        if p >= 2 {
+            tau_pow *= rho;
+        }
+        let scale = if p == 0 { rho } else { tau_pow };
+        (!scale.is_zero()).then_some((p, scale))
+    })
 }
 
 /// Light leaving the sphere (centre `c`, radius `a`) at `e` towards the
