@@ -19,6 +19,7 @@
 //! | kernel | replaces | lanes |
 //! |---|---|---|
 //! | [`area_light_directions`] | `AreaLight::sample_direct` by area on a mesh light without vertex normals or texture (`Mesh::sample_position`, `PositionSample::towards`), then `Scene::sample_emitter_ray`'s shadow ray | paths at a smooth BSDF that picked such a light |
+//! | [`diffuse_light_contributions`] | the shading of those samples at a `diffuse` BSDF: the sample's weight, `Diffuse::eval_pdf`, `math::mis_power`, throughput · f · weight · w | the same lanes at a `diffuse` BSDF (not in pass-through scenes) |
 //! | [`diffuse_directions`] | `Diffuse::sample`'s direction and density (`square_to_cosine_hemisphere`), `Frame::to_world`, `SurfaceInteraction::spawn_origin` | paths at a `diffuse` BSDF lit from its front side |
 
 use crate::geometry::accel::SimdLevel;
@@ -51,6 +52,22 @@ pub struct AreaChunk {
     pub ray_d: [[f32; LANES]; 3],
     pub tmax: [f32; LANES],
     pub ok: [bool; LANES],
+    // Inputs of [`diffuse_light_contributions`] (filled for the lanes at a
+    // `diffuse` BSDF only): the shading normal, wi's z in the shading
+    // frame, the selection's probability, and per channel (RGB: the
+    // fourth unused) the path's throughput, the reflectance and the
+    // light's radiance.
+    pub fn_: [[f32; LANES]; 3],
+    pub wi_z: [f32; LANES],
+    pub pmf: [f32; LANES],
+    pub throughput: [[f32; LANES]; 4],
+    pub reflectance: [[f32; LANES]; 4],
+    pub radiance: [[f32; LANES]; 4],
+    // Its outputs: the contribution, and whether there is one (a sample
+    // that stands and a BSDF value that is not zero; the shadow test is
+    // still to come).
+    pub contrib: [[f32; LANES]; 4],
+    pub lit: [bool; LANES],
 }
 
 /// Directions towards area lights sampled by area, for the lanes of
@@ -149,6 +166,95 @@ fn area_body(chunks: &mut [AreaChunk]) {
             ch.pdf[k] = pdf;
             ch.tmax[k] = len * (1.0 - SHADOW_EPSILON);
             ch.ok[k] = ok_dist & ok_cos & ok_light & ok_ray;
+        }
+    }
+}
+
+/// The next-event contributions of area-light samples at `diffuse`
+/// (Lambertian) BSDFs, for the lanes of `chunks` after
+/// [`area_light_directions`] (its outputs and the shading inputs filled):
+/// what the path tracer computes after the shadow test — the emitter
+/// sample's weight (radiance / pdf / selection, `AreaLight::sample_direct`
+/// and `Scene::sample_emitter_ray`), `Diffuse::eval_pdf` of the direction
+/// in the shading frame, the power heuristic (`math::mis_power`) and
+/// throughput · f · weight · w.
+pub fn diffuse_light_contributions(level: SimdLevel, chunks: &mut [AreaChunk]) {
+    match level {
+        // SAFETY: the accelerator's level is one the CPU supports.
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx512 => unsafe { contrib_avx512(chunks) },
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx2 => unsafe { contrib_avx2(chunks) },
+        _ => contrib_body(chunks),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,bmi1,bmi2,popcnt,lzcnt")]
+unsafe fn contrib_avx512(chunks: &mut [AreaChunk]) {
+    contrib_body(chunks)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,bmi1,bmi2,popcnt,lzcnt")]
+unsafe fn contrib_avx2(chunks: &mut [AreaChunk]) {
+    contrib_body(chunks)
+}
+
+#[inline(always)]
+fn contrib_body(chunks: &mut [AreaChunk]) {
+    use crate::math::INV_PI;
+    for ch in chunks.iter_mut() {
+        // Per lane first, then per channel: each loop runs over the lanes,
+        // so that it becomes vector instructions (a loop over the
+        // channels inside one over the lanes would be vectorized across
+        // the four channels instead).
+        let mut cos = [0.0f32; LANES];
+        let mut black = [false; LANES];
+        let mut inv_pdf = [0.0f32; LANES];
+        let mut inv_pmf = [0.0f32; LANES];
+        let mut w = [0.0f32; LANES];
+        for k in 0..LANES {
+            // SurfaceInteraction::to_local(d).z (glam's dot, left to right).
+            let wo_z = ch.d[0][k] * ch.fn_[0][k] + ch.d[1][k] * ch.fn_[1][k] + ch.d[2][k] * ch.fn_[2][k];
+            let wi_z = ch.wi_z[k];
+            // Diffuse::eval (ρ · (1/π · cos), zero unless both sides are
+            // above the surface) and ::pdf (cosine_hemisphere_pdf).
+            black[k] = (wi_z <= 0.0) | (wo_z <= 0.0);
+            cos[k] = INV_PI * wo_z;
+            let pdf_bsdf = if wi_z <= 0.0 { 0.0 } else if wo_z > 0.0 { wo_z * INV_PI } else { 0.0 };
+            // The emitter sample: weight = radiance / pdf / pmf (an `Rgb`
+            // or `Sampled` divided by x is multiplied by 1 / x), density
+            // pdf · pmf; then mis_power(emitter's, BSDF's).
+            let (pdf, pmf) = (ch.pdf[k], ch.pmf[k]);
+            inv_pdf[k] = 1.0 / pdf;
+            inv_pmf[k] = 1.0 / pmf;
+            let a = pdf * pmf;
+            let a = a * a;
+            let b = pdf_bsdf * pdf_bsdf;
+            let sum = a + b;
+            let ratio = a / sum;
+            w[k] = if (sum > 0.0) & a.is_finite() {
+                ratio
+            } else if a.is_infinite() {
+                1.0
+            } else {
+                0.0
+            };
+        }
+        // throughput · f · weight · w, channel by channel; the BSDF value
+        // is zero where all its channels are.
+        let mut nonzero = [false; LANES];
+        for c in 0..4 {
+            for k in 0..LANES {
+                let f = if black[k] { 0.0 } else { ch.reflectance[c][k] * cos[k] };
+                nonzero[k] |= f != 0.0;
+                let weight = ch.radiance[c][k] * inv_pdf[k] * inv_pmf[k];
+                ch.contrib[c][k] = ch.throughput[c][k] * f * weight * w[k];
+            }
+        }
+        for k in 0..LANES {
+            ch.lit[k] = ch.ok[k] & nonzero[k];
         }
     }
 }

@@ -172,7 +172,11 @@ pub struct Queues<S: Spectrum> {
     /// Area-light samples for the SIMD kernel: chunks of lanes, and per
     /// lane its path, the selection's probability and the emitter.
     area: Vec<AreaChunk>,
-    area_meta: Vec<(u32, f32, u32)>,
+    area_meta: Vec<AreaLane>,
+    /// The kernel lanes (indices into `area_meta`) shaded by
+    /// [`kernels::diffuse_light_contributions`] with a contribution: their
+    /// shadow rays follow the others in `shadow_ray`.
+    lit_lane: Vec<u32>,
     /// Diffuse lanes for the BSDF-sampling kernel, and their paths.
     diffuse: Vec<DiffuseChunk>,
     diffuse_lane: Vec<u32>,
@@ -200,6 +204,17 @@ struct Prev {
     n: Vec3,
     pdf: f32,
     delta: bool,
+}
+
+/// A lane of the area-light kernels: its path, the selection's
+/// probability, the emitter, and whether
+/// [`kernels::diffuse_light_contributions`] shades it (a `diffuse` BSDF).
+#[derive(Clone, Copy, Debug)]
+struct AreaLane {
+    path: u32,
+    pmf: f32,
+    emitter: u32,
+    shade: bool,
 }
 
 /// Whether an emitter is an area light the SIMD kernel samples exactly as
@@ -239,6 +254,7 @@ impl<S: Spectrum> Default for Queues<S> {
             shadow_blocked: Vec::with_capacity(BATCH),
             area: Vec::new(),
             area_meta: Vec::with_capacity(BATCH),
+            lit_lane: Vec::with_capacity(BATCH),
             diffuse: Vec::new(),
             diffuse_lane: Vec::with_capacity(BATCH),
             bsdf_of: Vec::with_capacity(BATCH),
@@ -422,6 +438,10 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
         }));
         q.tables_of = key;
     }
+    // Whether the kernels shade the samples at `diffuse` BSDFs (not where
+    // shadow rays pass through shapes: their transmittance scales the
+    // emitter sample's weight, not the contribution).
+    let shade_diffuse = !scene.pass_through && S::from_channels4([0.0; 4]).is_some();
     // Pass 1: the emitter's choice per path; area lights on meshes go to
     // the SIMD kernel, the others are sampled here.
     for &i in &q.live {
@@ -451,7 +471,27 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
                 ch.u[0][l] = ux;
                 ch.u[1][l] = u.y;
                 ch.inv_area[l] = 1.0 / mesh.area();
-                q.area_meta.push((i as u32, pmf, index as u32));
+                // At a `diffuse` BSDF the kernels shade the sample too.
+                let mut shade = false;
+                if let (true, Bsdf::Diffuse(b), Emitter::Area(light)) = (shade_diffuse, scene.bsdf(si), &scene.emitters[index]) {
+                    let wl = &q.wl[i];
+                    let refl = b.reflectance.eval_spectrum::<S>(si, wl).depolarize();
+                    let radiance: S = light.radiance.eval(wl);
+                    if let (Some(t), Some(r), Some(e)) = (q.throughput[i].to_channels4(), refl.to_channels4(), radiance.to_channels4()) {
+                        for c in 0..4 {
+                            ch.throughput[c][l] = t[c];
+                            ch.reflectance[c][l] = r[c];
+                            ch.radiance[c][l] = e[c];
+                        }
+                        ch.fn_[0][l] = si.frame.n.x;
+                        ch.fn_[1][l] = si.frame.n.y;
+                        ch.fn_[2][l] = si.frame.n.z;
+                        ch.wi_z[l] = si.wi.z;
+                        ch.pmf[l] = pmf;
+                        shade = true;
+                    }
+                }
+                q.area_meta.push(AreaLane { path: i as u32, pmf, emitter: index as u32, shade });
             } else if let Some((es, ray)) = scene.sample_emitter_ray_from::<S>(si, index, pmf, ux, u.y, &q.wl[i]) {
                 q.shadow_path.push(i as u32);
                 q.shadow_sample.push(es);
@@ -459,16 +499,31 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
             }
         }
     }
-    // Pass 2: the kernel, then the radiance and the selection divided in
-    // as `AreaLight::sample_direct` and `Scene::sample_emitter_ray` do.
+    // Pass 2: the kernels; for the lanes they did not shade, the radiance
+    // and the selection divided in as `AreaLight::sample_direct` and
+    // `Scene::sample_emitter_ray` do, and their shadow rays join the scalar
+    // route's. The shaded lanes' shadow rays follow, for the lanes with a
+    // contribution only.
+    q.lit_lane.clear();
     if !q.area_meta.is_empty() {
         let used = q.area_meta.len().div_ceil(LANES);
-        kernels::area_light_directions(scene.accel.simd_level(), &mut q.area[..used]);
-        for (k, &(i, pmf, index)) in q.area_meta.iter().enumerate() {
+        let level = scene.accel.simd_level();
+        kernels::area_light_directions(level, &mut q.area[..used]);
+        if shade_diffuse {
+            kernels::diffuse_light_contributions(level, &mut q.area[..used]);
+        }
+        for (k, lane) in q.area_meta.iter().enumerate() {
             let (ch, l) = (&q.area[k / LANES], k % LANES);
+            if lane.shade {
+                if ch.lit[l] {
+                    q.lit_lane.push(k as u32);
+                }
+                continue;
+            }
             if !ch.ok[l] {
                 continue;
             }
+            let (i, pmf, index) = (lane.path, lane.pmf, lane.emitter);
             let Emitter::Area(light) = &scene.emitters[index as usize] else { continue };
             let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
             let pdf = ch.pdf[l];
@@ -479,8 +534,13 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
             q.shadow_sample.push(es);
             q.shadow_ray.push(Ray { o: v(&ch.ray_o), d: v(&ch.ray_d), tmax: ch.tmax[l] });
         }
+        for &k in &q.lit_lane {
+            let (ch, l) = (&q.area[k as usize / LANES], k as usize % LANES);
+            let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
+            q.shadow_ray.push(Ray { o: v(&ch.ray_o), d: v(&ch.ray_d), tmax: ch.tmax[l] });
+        }
     }
-    if q.shadow_path.is_empty() {
+    if q.shadow_ray.is_empty() {
         return;
     }
     q.shadow_blocked.clear();
@@ -488,7 +548,20 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     if !scene.pass_through {
         scene.accel.occluded_stream(&q.shadow_ray, &mut q.shadow_blocked);
     }
-    for k in 0..q.shadow_path.len() {
+    // The shaded lanes' contributions where the light is seen.
+    let scalar = q.shadow_path.len();
+    for (&k, &blocked) in q.lit_lane.iter().zip(&q.shadow_blocked[scalar..]) {
+        if blocked {
+            continue;
+        }
+        let (k, l) = (k as usize, k as usize % LANES);
+        let ch = &q.area[k / LANES];
+        let i = q.area_meta[k].path as usize;
+        if let Some(c) = S::from_channels4([ch.contrib[0][l], ch.contrib[1][l], ch.contrib[2][l], ch.contrib[3][l]]) {
+            q.result[i] += c;
+        }
+    }
+    for k in 0..scalar {
         let i = q.shadow_path[k] as usize;
         let mut es = q.shadow_sample[k];
         if scene.pass_through {

@@ -119,4 +119,18 @@ pub trait Spectrum:
     }
     /// Whether this type carries polarisation.
     const POLARIZED: bool = false;
+    /// The values as up to four plain channels (RGB: the fourth is 0), for
+    /// the SIMD kernels that keep one channel of many paths per register
+    /// (`integrator::kernels`); `None` for types that are not a few plain
+    /// numbers (Mueller matrices).
+    #[inline]
+    fn to_channels4(&self) -> Option<[f32; 4]> {
+        None
+    }
+    /// The inverse of [`Spectrum::to_channels4`] (RGB ignores the fourth);
+    /// `None` where that gives `None`.
+    #[inline]
+    fn from_channels4(_c: [f32; 4]) -> Option<Self> {
+        None
+    }
 }

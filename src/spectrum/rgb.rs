@@ -152,4 +152,12 @@ impl Spectrum for Rgb {
     fn is_zero(&self) -> bool {
         self.0 == [0.0; 3]
     }
+    #[inline]
+    fn to_channels4(&self) -> Option<[f32; 4]> {
+        Some([self.0[0], self.0[1], self.0[2], 0.0])
+    }
+    #[inline]
+    fn from_channels4(c: [f32; 4]) -> Option<Self> {
+        Some(Rgb([c[0], c[1], c[2]]))
+    }
 }

@@ -217,6 +217,14 @@ impl Spectrum for Sampled {
     fn is_zero(&self) -> bool {
         self.0 == Vec4::ZERO
     }
+    #[inline]
+    fn to_channels4(&self) -> Option<[f32; 4]> {
+        Some(self.0.to_array())
+    }
+    #[inline]
+    fn from_channels4(c: [f32; 4]) -> Option<Self> {
+        Some(Sampled(Vec4::from_array(c)))
+    }
 }
 
 #[cfg(test)]
