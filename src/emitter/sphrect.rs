@@ -165,7 +165,7 @@ impl Rectangle {
     /// every caller: from most shading points it fails, and then costs no
     /// call).
     #[inline(always)]
-    fn seen_wide(&self, o: Vec3) -> bool {
+    pub fn seen_wide(&self, o: Vec3) -> bool {
         !(self.area < MIN_AREA_OVER_DIST2 * (self.center - o).length_squared())
     }
 

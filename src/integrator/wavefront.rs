@@ -631,7 +631,10 @@ fn kernel_light(scene: &Scene, index: usize) -> KernelLight {
 /// The mesh of emitter `index` if [`kernels::area_light_directions`]
 /// samples it from `p` exactly as `AreaLight::sample_direct` would: an
 /// emitter [`kernel_light`] accepts (`table`), and a rectangle not seen
-/// wide from `p` (that one is sampled by solid angle).
+/// wide from `p`. One seen wide is sampled by solid angle (or, where its
+/// spherical rectangle fails, by area) by the scalar code, which decides
+/// between the two itself: deciding here too computed the spherical
+/// rectangle twice.
 #[inline]
 fn kernel_area_light<'s>(scene: &'s Scene, table: &[KernelLight], index: usize, p: Vec3) -> Option<&'s Mesh> {
     let kind = *table.get(index)?;
@@ -641,7 +644,7 @@ fn kernel_area_light<'s>(scene: &'s Scene, table: &[KernelLight], index: usize, 
     let Emitter::Area(a) = &scene.emitters[index] else { return None };
     if kind == KernelLight::Rect {
         if let Some(r) = &a.rect {
-            if r.spherical(p).is_some() {
+            if r.seen_wide(p) {
                 return None;
             }
         }
