@@ -161,7 +161,7 @@ impl Rectangle {
     }
 
     /// Whether the rectangle is seen wide enough from `o` to be sampled by
-    /// solid angle (the first test of [`Rectangle::local`], inlined into
+    /// solid angle (the first test of `Rectangle::local`, inlined into
     /// every caller: from most shading points it fails, and then costs no
     /// call).
     #[inline(always)]

@@ -46,7 +46,12 @@
 //!    the shadow rays traced as one stream in packets of 8
 //!    ([`crate::geometry::accel::Accel::occluded_stream`]; pass-through
 //!    scenes: `Scene::transmittance` per ray), then BSDF values, MIS
-//!    weights and contributions;
+//!    weights and contributions. Kernel samples at a `diffuse` BSDF stay in
+//!    their chunks through the shading
+//!    ([`super::kernels::diffuse_light_contributions`]: weight, Lambertian
+//!    value and pdf, MIS, contribution) before the shadow test, and only
+//!    those with a nonzero BSDF value get a shadow ray; their contribution
+//!    is added where the ray is not blocked;
 //! 4. BSDF sampling with the paths grouped by BSDF (a counting sort on the
 //!    shape's BSDF index), so that each BSDF's code and data stay hot while
 //!    its paths are sampled (the directions of all `diffuse` lanes by a SIMD
