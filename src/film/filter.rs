@@ -39,8 +39,9 @@ pub struct Filter {
     /// (LUT − 1) / radius: maps |x| to a table position.
     scale: f32,
     /// Segment i: the values at |x| = i·radius/(LUT − 1) and the next one,
-    /// stored together so a lookup reads one entry.
-    segments: Vec<[f32; 2]>,
+    /// stored together so a lookup reads one entry (a fixed size, so a
+    /// lookup needs no bounds check).
+    segments: Box<[[f32; 2]; LUT - 1]>,
     /// Whether every value [`Filter::eval`] returns lies within ±1 (so a
     /// sink need not check each sample's weights).
     within_one: bool,
@@ -102,7 +103,7 @@ impl Filter {
     pub fn new(kind: FilterKind) -> Filter {
         let radius = kind.radius();
         let value = |i: usize| kind.eval(radius * i as f32 / (LUT - 1) as f32);
-        let segments: Vec<[f32; 2]> = (0..LUT - 1).map(|i| [value(i), value(i + 1)]).collect();
+        let segments: Box<[[f32; 2]; LUT - 1]> = Box::new(std::array::from_fn(|i| [value(i), value(i + 1)]));
         // A lookup a + (b − a)·t (0 ≤ t < 1) lies between a and b up to a
         // few roundings (< 10⁻⁶ relative); the box filter returns 0 or 1.
         let peak = segments.iter().flatten().fold(0.0f32, |m, v| m.max(v.abs()));
@@ -131,8 +132,31 @@ impl Filter {
     #[inline]
     pub fn eval(&self, x: f32) -> f32 {
         if let FilterKind::Box = self.kind {
-            return if (-0.5..0.5).contains(&x) { 1.0 } else { 0.0 };
+            return box_value(x);
         }
+        self.lookup(x)
+    }
+
+    /// The values at the pixel centres `first` + i + ½ (i = 0, 1, …) seen
+    /// from position `pos`: `out[i]` = [`Filter::eval`]`((first + i) as f32
+    /// + 0.5 − pos)`, the same bits, with the filter's kind tested once.
+    #[inline]
+    pub fn eval_span(&self, first: i32, pos: f32, out: &mut [f32]) {
+        let x = |i: usize| (first + i as i32) as f32 + 0.5 - pos;
+        if let FilterKind::Box = self.kind {
+            for (i, w) in out.iter_mut().enumerate() {
+                *w = box_value(x(i));
+            }
+        } else {
+            for (i, w) in out.iter_mut().enumerate() {
+                *w = self.lookup(x(i));
+            }
+        }
+    }
+
+    /// The table's value at `x` (every kind but the box).
+    #[inline(always)]
+    fn lookup(&self, x: f32) -> f32 {
         let f = x.abs() * self.scale;
         if !(f < (LUT - 1) as f32) {
             return 0.0;
@@ -141,9 +165,16 @@ impl Filter {
         // conversion is in range and truncates as `as` would.
         let i = unsafe { f.to_int_unchecked::<u32>() } as usize;
         let t = f - i as f32;
-        let [a, b] = self.segments[i];
+        // `min` is a no-op (i < LUT − 1) that spares the bounds check.
+        let [a, b] = self.segments[i.min(LUT - 2)];
         a + (b - a) * t
     }
+}
+
+/// The box filter: 1 on [−½, ½), else 0.
+#[inline(always)]
+fn box_value(x: f32) -> f32 {
+    if (-0.5..0.5).contains(&x) { 1.0 } else { 0.0 }
 }
 
 #[cfg(test)]
