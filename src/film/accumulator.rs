@@ -151,6 +151,86 @@ pub struct Sink {
     /// at most one term to each sum). While it stays within `i64::MAX` no
     /// narrow sum can overflow, so adding to them needs no checks.
     load: u64,
+    /// Whether the narrow sums are added with AVX2 (the CPU has it and
+    /// `SNELL_SIMD` allows it): the same integers either way.
+    avx2: bool,
+}
+
+/// Adds a narrow camera sample's terms to the narrow sums `narrow` of a sink
+/// `width` pixels wide: row j of the footprint starts at pixel `first` + j ·
+/// `width` and has the weights w = trunc(`wx`[i] · `wy`[j] · 2^20), each
+/// pixel gaining w · `rgb` (fixed point) and the weight's w · 2^32. Only for
+/// samples [`Sink::add_sample`] found narrow: weights within ±1, values
+/// below `NARROW_LIMIT`, the sink's `load` raised by the sample's bound, so
+/// no sum can overflow (every |sum| ≤ `load` ≤ i64::MAX).
+#[inline(always)]
+fn add_narrow_rows(narrow: &mut [[i64; 4]], width: usize, first: usize, wx: &[f32], wy: &[f32], rgb: [i64; 3]) {
+    for (j, &wyj) in wy.iter().enumerate() {
+        if wyj == 0.0 {
+            continue;
+        }
+        let row = first + j * width;
+        let Some(dst) = narrow.get_mut(row..row + wx.len()) else { continue };
+        // wx·(wy·2^20) is (wx·wy)·2^20 to the bit: scaling by a power of two
+        // is exact, and where wx·wy would be subnormal both are below 1 and
+        // truncate to 0.
+        let wy_scaled = wyj * WEIGHT_SCALE;
+        for (n, &wxi) in dst.iter_mut().zip(wx) {
+            let w = narrow_weight(wxi, wy_scaled) as i64;
+            n[0] += w * rgb[0];
+            n[1] += w * rgb[1];
+            n[2] += w * rgb[2];
+            n[3] += w << VALUE_BITS;
+        }
+    }
+}
+
+/// A pixel's fixed-point weight trunc(`wx` · `wy_scaled`), both weights
+/// within ±1 (`wy_scaled` times 2^20).
+#[inline(always)]
+fn narrow_weight(wx: f32, wy_scaled: f32) -> i32 {
+    // SAFETY: both weights are within ±1 (`within_one` or `in_range` in
+    // `add_sample`), so the product is within ±2^20, finite and
+    // representable: the unchecked conversion truncates as `as` would.
+    unsafe { (wx * wy_scaled).to_int_unchecked::<i32>() }
+}
+
+/// [`add_narrow_rows`] with a pixel's four sums (R, G, B, weight) added as
+/// one AVX2 vector. AVX2 has no 64-bit multiply, so each value v is split
+/// into v = hi · 2^32 + lo with lo, hi signed 32-bit (|v| < 2^36 here), and
+/// w · v = w · lo + (w · hi) · 2^32, two 32 × 32 → 64-bit products: the
+/// same integers as the plain code's.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn add_narrow_rows_avx2(narrow: &mut [[i64; 4]], width: usize, first: usize, wx: &[f32], wy: &[f32], rgb: [i64; 3]) {
+    use std::arch::x86_64::*;
+    let split = |v: i64| {
+        let lo = v as i32 as i64;
+        (lo, (v - lo) >> 32)
+    };
+    let [(r0, r1), (g0, g1), (b0, b1)] = rgb.map(split);
+    // The weight's value 2^32: lo 0, hi 1.
+    let lo = _mm256_set_epi64x(0, b0, g0, r0);
+    let hi = _mm256_set_epi64x(1, b1, g1, r1);
+    for (j, &wyj) in wy.iter().enumerate() {
+        if wyj == 0.0 {
+            continue;
+        }
+        let row = first + j * width;
+        let Some(dst) = narrow.get_mut(row..row + wx.len()) else { continue };
+        let wy_scaled = wyj * WEIGHT_SCALE;
+        for (n, &wxi) in dst.iter_mut().zip(wx) {
+            let w = _mm256_set1_epi64x(narrow_weight(wxi, wy_scaled) as i64);
+            let t = _mm256_add_epi64(_mm256_mul_epi32(w, lo), _mm256_slli_epi64::<32>(_mm256_mul_epi32(w, hi)));
+            let p = n.as_mut_ptr() as *mut __m256i;
+            // SAFETY: `p` points to the pixel's four i64 sums (32 bytes);
+            // unaligned loads and stores.
+            unsafe { _mm256_storeu_si256(p, _mm256_add_epi64(_mm256_loadu_si256(p), t)) };
+        }
+    }
 }
 
 /// Samples whose largest fixed-point value (colour, and the weight's 1) is
@@ -177,6 +257,7 @@ impl Sink {
             data: vec![0; width * height * stride],
             narrow: if layout.camera { vec![[0; 4]; width * height] } else { vec![] },
             load: 0,
+            avx2: crate::geometry::accel::SimdLevel::current() >= crate::geometry::accel::SimdLevel::Avx2,
         }
     }
 
@@ -210,12 +291,8 @@ impl Sink {
         }
         let (nx, ny) = (((x1 - x0 + 1) as usize).min(MAX_FOOTPRINT), ((y1 - y0 + 1) as usize).min(MAX_FOOTPRINT));
         let (mut wx, mut wy) = ([0.0f32; MAX_FOOTPRINT], [0.0f32; MAX_FOOTPRINT]);
-        for (i, w) in wx[..nx].iter_mut().enumerate() {
-            *w = filter.eval((x0 + i as i32) as f32 + 0.5 - pos.x);
-        }
-        for (j, w) in wy[..ny].iter_mut().enumerate() {
-            *w = filter.eval((y0 + j as i32) as f32 + 0.5 - pos.y);
-        }
+        filter.eval_span(x0, pos.x, &mut wx[..nx]);
+        filter.eval_span(y0, pos.y, &mut wy[..ny]);
         // Values rounded once per sample; weights once per pixel.
         let v = [fixed_value(rgb[0]), fixed_value(rgb[1]), fixed_value(rgb[2]), 1 << VALUE_BITS];
         let s = s123.map(|s| [0, 1, 2, 3, 4, 5, 6, 7, 8].map(|k| fixed_value(s[k / 3][k % 3])));
@@ -232,32 +309,26 @@ impl Sink {
                 self.flush_narrow();
             }
             self.load += bound;
+            let first = (y0 - self.y0) as usize * self.width + (x0 - self.x0) as usize;
+            let rgb = [v[0], v[1], v[2]];
+            #[cfg(target_arch = "x86_64")]
+            if self.avx2 {
+                // SAFETY: `avx2` is set only where the CPU has AVX2.
+                unsafe { add_narrow_rows_avx2(&mut self.narrow, self.width, first, &wx[..nx], &wy[..ny], rgb) };
+            } else {
+                add_narrow_rows(&mut self.narrow, self.width, first, &wx[..nx], &wy[..ny], rgb);
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            add_narrow_rows(&mut self.narrow, self.width, first, &wx[..nx], &wy[..ny], rgb);
+            if s.is_none() {
+                return self.add_extra_of(x0, y0, &wx[..nx], &wy[..ny], extra);
+            }
         }
         for j in 0..ny {
             if wy[j] == 0.0 {
                 continue;
             }
             let row = ((y0 - self.y0) as usize + j) * self.width + (x0 - self.x0) as usize;
-            if narrow {
-                // wx·(wy·2^20) is (wx·wy)·2^20 to the bit: scaling by a power
-                // of two is exact, and where wx·wy would be subnormal both
-                // are below 1 and truncate to 0.
-                let wy_scaled = wy[j] * WEIGHT_SCALE;
-                // No sum can overflow: |sum| ≤ `load` ≤ i64::MAX.
-                for (n, &wxi) in self.narrow[row..row + nx].iter_mut().zip(&wx[..nx]) {
-                    // SAFETY: both weights are within ±1 (`within_one` or
-                    // `in_range`), so the product is within ±2^20, finite and
-                    // representable: the unchecked conversion truncates as
-                    // `as` would.
-                    let w: i64 = unsafe { (wxi * wy_scaled).to_int_unchecked() };
-                    for k in 0..4 {
-                        n[k] += w * v[k];
-                    }
-                }
-                if s.is_none() {
-                    continue;
-                }
-            }
             for i in 0..nx {
                 let w = fixed_weight(wx[i] * wy[j]);
                 if w == 0 {
@@ -278,9 +349,16 @@ impl Sink {
                 }
             }
         }
+        self.add_extra_of(x0, y0, &wx[..nx], &wy[..ny], extra);
+    }
+
+    /// The further channels `extra` (those the layout names) of a sample
+    /// with the footprint and weights of [`Sink::add_sample`].
+    #[inline(always)]
+    fn add_extra_of(&mut self, x0: i32, y0: i32, wx: &[f32], wy: &[f32], extra: &[f32]) {
         let n_extra = self.n_extra.min(extra.len());
         if n_extra > 0 {
-            self.add_extra(x0, y0, &wx[..nx], &wy[..ny], &extra[..n_extra]);
+            self.add_extra(x0, y0, wx, wy, &extra[..n_extra]);
         }
     }
 

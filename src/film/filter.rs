@@ -39,8 +39,9 @@ pub struct Filter {
     /// (LUT − 1) / radius: maps |x| to a table position.
     scale: f32,
     /// Segment i: the values at |x| = i·radius/(LUT − 1) and the next one,
-    /// stored together so a lookup reads one entry.
-    segments: Vec<[f32; 2]>,
+    /// stored together so a lookup reads one entry (a fixed size, so a
+    /// lookup needs no bounds check).
+    segments: Box<[[f32; 2]; LUT - 1]>,
     /// Whether every value [`Filter::eval`] returns lies within ±1 (so a
     /// sink need not check each sample's weights).
     within_one: bool,
@@ -102,7 +103,7 @@ impl Filter {
     pub fn new(kind: FilterKind) -> Filter {
         let radius = kind.radius();
         let value = |i: usize| kind.eval(radius * i as f32 / (LUT - 1) as f32);
-        let segments: Vec<[f32; 2]> = (0..LUT - 1).map(|i| [value(i), value(i + 1)]).collect();
+        let segments: Box<[[f32; 2]; LUT - 1]> = Box::new(std::array::from_fn(|i| [value(i), value(i + 1)]));
         // A lookup a + (b − a)·t (0 ≤ t < 1) lies between a and b up to a
         // few roundings (< 10⁻⁶ relative); the box filter returns 0 or 1.
         let peak = segments.iter().flatten().fold(0.0f32, |m, v| m.max(v.abs()));
@@ -131,8 +132,70 @@ impl Filter {
     #[inline]
     pub fn eval(&self, x: f32) -> f32 {
         if let FilterKind::Box = self.kind {
-            return if (-0.5..0.5).contains(&x) { 1.0 } else { 0.0 };
+            return box_value(x);
         }
+        self.lookup(x)
+    }
+
+    /// The values at the pixel centres `first` + i + ½ (i = 0, 1, …) seen
+    /// from position `pos`: `out[i]` = [`Filter::eval`]`((first + i) as f32
+    /// + 0.5 − pos)`, the same bits, with the filter's kind tested once (and
+    /// the table looked up four values at a time on x86-64).
+    #[inline]
+    pub fn eval_span(&self, first: i32, pos: f32, out: &mut [f32]) {
+        let x = |i: usize| (first + i as i32) as f32 + 0.5 - pos;
+        if let FilterKind::Box = self.kind {
+            for (i, w) in out.iter_mut().enumerate() {
+                *w = box_value(x(i));
+            }
+            return;
+        }
+        #[cfg(target_arch = "x86_64")]
+        for (k, chunk) in out.chunks_mut(4).enumerate() {
+            let v = self.lookup4(first + 4 * k as i32, pos);
+            chunk.copy_from_slice(&v[..chunk.len()]);
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        for (i, w) in out.iter_mut().enumerate() {
+            *w = self.lookup(x(i));
+        }
+    }
+
+    /// [`Filter::lookup`] at the pixel centres `first` + i + ½ (i < 4) seen
+    /// from `pos`, in SSE2 (part of x86-64): lane by lane the same IEEE
+    /// operations (conversions exact for pixel coordinates), so the same
+    /// bits; a lane outside the table is +0, as there.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn lookup4(&self, first: i32, pos: f32) -> [f32; 4] {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE2 is part of the x86-64 baseline; the stores write
+        // 16 bytes into 16-byte arrays.
+        unsafe {
+            let centre = _mm_cvtepi32_ps(_mm_add_epi32(_mm_set1_epi32(first), _mm_set_epi32(3, 2, 1, 0)));
+            let x = _mm_sub_ps(_mm_add_ps(centre, _mm_set1_ps(0.5)), _mm_set1_ps(pos));
+            let abs = _mm_and_ps(x, _mm_castsi128_ps(_mm_set1_epi32(0x7fff_ffff)));
+            let f = _mm_mul_ps(abs, _mm_set1_ps(self.scale));
+            // f < LUT − 1 (false for NaN); other lanes look up entry 0 and
+            // are zeroed at the end.
+            let inside = _mm_cmplt_ps(f, _mm_set1_ps((LUT - 1) as f32));
+            let i = _mm_cvttps_epi32(_mm_and_ps(f, inside));
+            let t = _mm_sub_ps(f, _mm_cvtepi32_ps(i));
+            let mut idx = [0i32; 4];
+            _mm_storeu_si128(idx.as_mut_ptr() as *mut __m128i, i);
+            let seg = idx.map(|i| self.segments[(i as usize).min(LUT - 2)]);
+            let a = _mm_set_ps(seg[3][0], seg[2][0], seg[1][0], seg[0][0]);
+            let b = _mm_set_ps(seg[3][1], seg[2][1], seg[1][1], seg[0][1]);
+            let v = _mm_and_ps(_mm_add_ps(a, _mm_mul_ps(_mm_sub_ps(b, a), t)), inside);
+            let mut out = [0.0f32; 4];
+            _mm_storeu_ps(out.as_mut_ptr(), v);
+            out
+        }
+    }
+
+    /// The table's value at `x` (every kind but the box).
+    #[inline(always)]
+    fn lookup(&self, x: f32) -> f32 {
         let f = x.abs() * self.scale;
         if !(f < (LUT - 1) as f32) {
             return 0.0;
@@ -141,9 +204,16 @@ impl Filter {
         // conversion is in range and truncates as `as` would.
         let i = unsafe { f.to_int_unchecked::<u32>() } as usize;
         let t = f - i as f32;
-        let [a, b] = self.segments[i];
+        // `min` is a no-op (i < LUT − 1) that spares the bounds check.
+        let [a, b] = self.segments[i.min(LUT - 2)];
         a + (b - a) * t
     }
+}
+
+/// The box filter: 1 on [−½, ½), else 0.
+#[inline(always)]
+fn box_value(x: f32) -> f32 {
+    if (-0.5..0.5).contains(&x) { 1.0 } else { 0.0 }
 }
 
 #[cfg(test)]
@@ -253,5 +323,33 @@ mod tests {
         let b = Filter::new(FilterKind::Box);
         assert_eq!(b.eval(0.49), 1.0);
         assert_eq!(b.eval(0.5), 0.0);
+    }
+
+    #[test]
+    fn span_matches_single_values_to_the_bit() {
+        let kinds = [
+            FilterKind::Box,
+            FilterKind::Tent { radius: 1.5 },
+            FilterKind::Gaussian { stddev: 0.5, radius: 2.0 },
+            FilterKind::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 },
+            FilterKind::Lanczos { lobes: 4 },
+        ];
+        let mut state = 99u32;
+        for k in kinds {
+            let f = Filter::new(k);
+            for _ in 0..20_000 {
+                state = state.wrapping_mul(747796405).wrapping_add(2891336453);
+                let pos = (state >> 8) as f32 / (1u32 << 24) as f32 * 300.0 - 20.0;
+                let n = 1 + (state % 9) as usize;
+                let first = (pos - 0.5 - f.radius()).ceil() as i32 - (state >> 29) as i32;
+                let mut out = [f32::NAN; 9];
+                f.eval_span(first, pos, &mut out[..n]);
+                for (i, &w) in out[..n].iter().enumerate() {
+                    let want = f.eval((first + i as i32) as f32 + 0.5 - pos);
+                    assert_eq!(w.to_bits(), want.to_bits(), "{k:?} pos {pos} pixel {}", first + i as i32);
+                }
+                assert!(out[n..].iter().all(|w| w.is_nan()));
+            }
+        }
     }
 }
