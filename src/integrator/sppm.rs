@@ -650,7 +650,7 @@ mod tests {
     /// (A point whose cells hash to one bucket twice is listed there twice:
     /// hence the `dedup`.)
     #[test]
-    fn grid_finds_each_point_in_reach_once() {
+    fn grid_finds_every_point_in_reach() {
         let mut rng = Pcg32::new(7, 1);
         let n = 500;
         let points: Vec<Option<VisiblePoint<Rgb>>> = (0..n)
