@@ -12,9 +12,10 @@ does (it is consistent, not unbiased): compare settings at similar times.
 
 A config is `mode:radius_footprints:photons_per_pixel:iterations`, e.g.
 `caustics:1.5:1:128` (the defaults at 64²) or `indirect:3:4:64`, optionally
-followed by `:camera_sampler:alpha` (the scene's sampler, which the camera
-paths use with the iteration as the sample index; sppm's `alpha`), e.g.
-`indirect:1.5:1:128:zsobol:0.8`. --path-sampler
+followed by `:camera_sampler:alpha:rr_depth` (the scene's sampler, which the
+camera paths use with the iteration as the sample index; sppm's `alpha` and
+`rr_depth`; an empty field keeps the default), e.g.
+`indirect:1.5:1:128:zsobol:0.8` or `indirect:1.5:1:128:zsobol:0.75:1`. --path-sampler
 sets path's sampler. With --split each result is also split into the
 variance (over the seeds, about their mean image) and the bias² (the mean
 image against the reference, less the variance of that mean), both in
@@ -105,11 +106,12 @@ def main():
         print(f"  path {args.path_sampler or 'scene sampler'} {args.path_spp} spp: relMSE {e:.3e}, {t:.2f} CPU s, efficiency {eff_path:.1f}", flush=True)
         for c in args.config:
             mode, rf, ppp, its, *more = c.split(":")
-            cam, alpha = (more + [None, None])[:2]
+            cam, alpha, rr = [m or None for m in (more + [None, None, None])[:3]]
             photons = max(1, round(float(ppp) * pixels))
             xml = (f'<integrator type="sppm"><integer name="max_depth" value="{md}"/>'
                    f'<integer name="photon_count" value="{photons}"/><string name="photons" value="{mode}"/>'
                    + (f'<float name="alpha" value="{alpha}"/>' if alpha else "")
+                   + (f'<integer name="rr_depth" value="{rr}"/>' if rr else "")
                    + f'<float name="radius_footprints" value="{rf}"/></integrator>')
             s = variant(args, xml, "sppm")
             scenes.append(s)
@@ -117,7 +119,7 @@ def main():
                 with_sampler(s, cam)
             e, t, eff = measure(args, s, int(its), ref, "sppm")
             print(f"  sppm {mode:8s} radius {rf:>4s} fp, {ppp:>4s} photons/px, {its:>4s} it, camera {cam or 'scene'}, "
-                  f"alpha {alpha or '2/3'}: relMSE {e:.3e}, "
+                  f"alpha {alpha or '2/3'}, rr {rr or 5}: relMSE {e:.3e}, "
                   f"{t:.2f} CPU s, efficiency {eff:.1f} = {eff / eff_path:.2f}x path", flush=True)
         print(f"  load at the end {os.getloadavg()[0]:.1f}")
     finally:

@@ -179,9 +179,11 @@ struct PixelStats {
 }
 
 /// Bytes a render holds per pixel besides the film: visible point, grid
-/// entries (at most eight), statistics and the photon sums of an iteration.
+/// entries (at most eight, and the points gathered while building),
+/// statistics and the photon sums of an iteration.
 pub const MEMORY_PER_PIXEL: u64 = (std::mem::size_of::<Option<VisiblePoint<Sampled>>>()
-    + 8 * 4
+    + 8 * std::mem::size_of::<GridEntry>()
+    + std::mem::size_of::<(GridEntry, f32)>()
     + 4
     + std::mem::size_of::<PixelStats>()
     + 3 * 8
@@ -201,7 +203,17 @@ struct Grid {
     inv_cell: f32,
     /// Bucket b holds `items[starts[b]..starts[b + 1]]`.
     starts: Vec<u32>,
-    items: Vec<u32>,
+    items: Vec<GridEntry>,
+}
+
+/// A visible point in a bucket: its position and squared radius beside its
+/// pixel, so that the distance test (which most candidates fail) reads one
+/// contiguous array instead of the pixels' visible points and statistics.
+#[derive(Clone, Copy)]
+struct GridEntry {
+    p: Vec3,
+    r2: f32,
+    pixel: u32,
 }
 
 impl Grid {
@@ -209,20 +221,24 @@ impl Grid {
         points: &[Option<VisiblePoint<S>>],
         stats: &[PixelStats],
     ) -> Option<Grid> {
-        let (mut lo, mut hi, mut max_r, mut count) = (
-            Vec3::splat(f32::INFINITY),
-            Vec3::splat(f32::NEG_INFINITY),
-            0.0f32,
-            0usize,
-        );
-        for (vp, st) in points.iter().zip(stats) {
-            if let Some(vp) = vp {
-                lo = lo.min(vp.si.p);
-                hi = hi.max(vp.si.p);
-                max_r = max_r.max(st.radius as f32);
-                count += 1;
-            }
+        // The valid points with their radii, read once from the pixels.
+        let pts: Vec<(GridEntry, f32)> = points
+            .iter()
+            .zip(stats)
+            .enumerate()
+            .filter_map(|(i, (vp, st))| {
+                let r = st.radius as f32;
+                vp.as_ref().map(|vp| (GridEntry { p: vp.si.p, r2: r * r, pixel: i as u32 }, r))
+            })
+            .collect();
+        let (mut lo, mut hi, mut max_r) =
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY), 0.0f32);
+        for (e, r) in &pts {
+            lo = lo.min(e.p);
+            hi = hi.max(e.p);
+            max_r = max_r.max(*r);
         }
+        let count = pts.len();
         if count == 0 || !(max_r > 0.0) || !lo.is_finite() || !hi.is_finite() {
             return None;
         }
@@ -234,15 +250,14 @@ impl Grid {
             starts: vec![0; count + 1],
             items: vec![],
         };
-        let each = |f: &mut dyn FnMut(usize, u32)| {
-            for (i, (vp, st)) in points.iter().zip(stats).enumerate() {
-                let Some(vp) = vp else { continue };
-                let r = Vec3::splat(st.radius as f32);
-                let (a, b) = (grid.cell(vp.si.p - r), grid.cell(vp.si.p + r));
+        let each = |f: &mut dyn FnMut(usize, &GridEntry)| {
+            for (e, r) in &pts {
+                let r = Vec3::splat(*r);
+                let (a, b) = (grid.cell(e.p - r), grid.cell(e.p + r));
                 for z in a[2]..=b[2] {
                     for y in a[1]..=b[1] {
                         for x in a[0]..=b[0] {
-                            f(hash_cell([x, y, z], count), i as u32);
+                            f(hash_cell([x, y, z], count), e);
                         }
                     }
                 }
@@ -254,9 +269,10 @@ impl Grid {
             counts[b + 1] += counts[b];
         }
         let mut fill = counts.clone();
-        let mut items = vec![0u32; counts[count] as usize];
-        each(&mut |b, i| {
-            items[fill[b] as usize] = i;
+        let empty = GridEntry { p: Vec3::ZERO, r2: 0.0, pixel: 0 };
+        let mut items = vec![empty; counts[count] as usize];
+        each(&mut |b, e| {
+            items[fill[b] as usize] = *e;
             fill[b] += 1;
         });
         grid.starts = counts;
@@ -273,7 +289,7 @@ impl Grid {
 
     /// The visible points that may lie within their radius of `p`.
     #[inline]
-    fn near(&self, p: Vec3) -> &[u32] {
+    fn near(&self, p: Vec3) -> &[GridEntry] {
         let b = hash_cell(self.cell(p), self.starts.len() - 1);
         &self.items[self.starts[b] as usize..self.starts[b + 1] as usize]
     }
@@ -285,6 +301,14 @@ impl Grid {
 pub(crate) fn floor_i32(x: f32) -> i32 {
     let i = x as i32;
     i.saturating_sub((x < i as f32) as i32)
+}
+
+/// `x.floor() as i64` for |x| < 2^53 without a call to the C library's
+/// `floor`.
+#[inline]
+fn floor_i64(x: f64) -> i64 {
+    let i = x as i64;
+    i - (x < i as f64) as i64
 }
 
 #[inline]
@@ -463,7 +487,6 @@ impl Sppm {
         wl: S::Wavelengths,
         grid: &Grid,
         points: &[Option<VisiblePoint<S>>],
-        stats: &[PixelStats],
         sums: &Sums,
     ) {
         let mut sampler = Sampler::start(spec, index, iteration, 0);
@@ -507,7 +530,7 @@ impl Sppm {
                 let seed =
                     mix64(((iteration as u64) << 32 | index as u64) ^ ((segments as u64) << 58));
                 self.deposit(
-                    scene, &si, ray.d, segments, beta, dispersed, seed, grid, points, stats, sums,
+                    scene, &si, ray.d, segments, beta, dispersed, seed, grid, points, sums,
                 );
             }
             if segments.saturating_add(2) > self.max_depth {
@@ -551,16 +574,15 @@ impl Sppm {
         seed: u64,
         grid: &Grid,
         points: &[Option<VisiblePoint<S>>],
-        stats: &[PixelStats],
         sums: &Sums,
     ) {
-        for (k, &i) in grid.near(si.p).iter().enumerate() {
-            let i = i as usize;
+        for (k, e) in grid.near(si.p).iter().enumerate() {
+            if (e.p - si.p).length_squared() >= e.r2 {
+                continue;
+            }
+            let i = e.pixel as usize;
             let Some(vp) = &points[i] else { continue };
-            let r = stats[i].radius as f32;
-            if (vp.si.p - si.p).length_squared() >= r * r
-                || vp.depth.saturating_add(segments) > self.max_depth
-            {
+            if vp.depth.saturating_add(segments) > self.max_depth {
                 continue;
             }
             // Not across a corner or onto the other side of a thin wall.
@@ -593,7 +615,7 @@ impl Sppm {
                 // Dithered rounding: unbiased, and the same whatever the order.
                 let u = ((h >> (20 * c)) & 0xfffff) as f64 / (1u64 << 20) as f64;
                 let v = (rgb[c] as f64 * FIXED_SCALE).clamp(-FIXED_MAX, FIXED_MAX);
-                let q = (v + u).floor() as i64;
+                let q = floor_i64(v + u);
                 if q != 0 {
                     sums.phi[i][c].fetch_add(q, Ordering::Relaxed);
                 }
@@ -610,7 +632,72 @@ fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
 
 #[cfg(test)]
 mod tests {
-    use super::floor_i32;
+    use super::{floor_i32, floor_i64, Grid, PixelStats, VisiblePoint};
+    use crate::geometry::SurfaceInteraction;
+    use crate::math::Pcg32;
+    use crate::spectrum::{Rgb, Spectrum};
+    use glam::Vec3;
+
+    #[test]
+    fn floor_i64_is_floor_as_i64() {
+        for x in [0.0f64, -0.0, 0.5, -0.5, 1.0, -1.0, 2.999, -2.999, 65535.99, -65535.99, 1e15 + 0.5, -1e15 - 0.5] {
+            assert_eq!(floor_i64(x), x.floor() as i64, "{x}");
+        }
+    }
+
+    /// Every visible point within its radius of a query is found, and no
+    /// other, on points of many radii (the cells are sized by the largest).
+    /// (A point whose cells hash to one bucket twice is listed there twice:
+    /// hence the `dedup`.)
+    #[test]
+    fn grid_finds_every_point_in_reach() {
+        let mut rng = Pcg32::new(7, 1);
+        let n = 500;
+        let points: Vec<Option<VisiblePoint<Rgb>>> = (0..n)
+            .map(|i| {
+                (i % 7 != 3).then(|| VisiblePoint {
+                    si: SurfaceInteraction {
+                        p: Vec3::new(rng.next_f32(), rng.next_f32(), 0.2 * rng.next_f32()),
+                        ..SurfaceInteraction::EMPTY
+                    },
+                    beta: Rgb::splat(1.0),
+                    wl: Rgb::sample_wavelengths(0.5),
+                    depth: 1,
+                    distance: 1.0,
+                })
+            })
+            .collect();
+        let stats: Vec<PixelStats> = (0..n)
+            .map(|_| PixelStats {
+                radius: 0.01 + 0.09 * rng.next_f32() as f64,
+                n: 0.0,
+                tau: [0.0; 3],
+                direct: [0.0; 3],
+            })
+            .collect();
+        let grid = Grid::build(&points, &stats).expect("points");
+        let mut found = 0;
+        for _ in 0..2000 {
+            let q = Vec3::new(1.2 * rng.next_f32() - 0.1, 1.2 * rng.next_f32() - 0.1, 0.2 * rng.next_f32());
+            let mut got: Vec<u32> = grid
+                .near(q)
+                .iter()
+                .filter(|e| (e.p - q).length_squared() < e.r2)
+                .map(|e| e.pixel)
+                .collect();
+            got.sort_unstable();
+            got.dedup();
+            let want: Vec<u32> = (0..n as u32)
+                .filter(|&i| {
+                    let r = stats[i as usize].radius as f32;
+                    points[i as usize].as_ref().is_some_and(|vp| (vp.si.p - q).length_squared() < r * r)
+                })
+                .collect();
+            assert_eq!(got, want, "query {q}");
+            found += want.len();
+        }
+        assert!(found > 2000, "the queries reach points ({found})");
+    }
 
     #[test]
     fn floor_i32_is_floor_as_i32() {
@@ -736,7 +823,6 @@ pub fn render<S: Spectrum>(
                                 wl,
                                 &grid,
                                 &points,
-                                &stats,
                                 &sums,
                             );
                         })
