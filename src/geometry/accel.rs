@@ -1,6 +1,6 @@
 //! The acceleration structure: an 8-wide BVH over every primitive of every
 //! shape. It is built as a binary SAH BVH (`accel/build.rs`, parallel) and
-//! collapsed to nodes that keep their eight child boxes in SoA form, so one
+//! collapsed, SAH-optimally (`accel/collapse.rs`), to nodes that keep their eight child boxes in SoA form, so one
 //! SIMD slab test checks all of them. The traversal is generic over the
 //! lanes type of `accel/simd.rs` and compiled three times: AVX-512, AVX2 +
 //! FMA and portable (SSE2 / NEON); which one runs is chosen at run time

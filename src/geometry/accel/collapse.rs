@@ -30,8 +30,18 @@ use super::{Accel, Leaf, Node, PrimGeom, PrimRef, TriRef, LEAF, MAX_LEAF, WIDTH}
 /// Relative costs of a wide node visit (one slab test of its eight boxes)
 /// and of a leaf unit (a packet of up to `PACKET` triangles, or one other
 /// primitive), per unit of half area.
-pub const COST_NODE: f32 = 1.0;
-pub const COST_LEAF: f32 = 1.0;
+///
+/// They are the binary build's (`build.rs`), so that the collapse does not
+/// undo its splits: with them every binary leaf stays a leaf (a packet of
+/// up to 8 triangles costs one unit, however full) and only the grouping
+/// into wide nodes changes. Measured (2026-12-01, AVX-512 EPYC, 1 M and 4 M
+/// triangle meshes): building the binary tree on to leaves of at most 4
+/// and letting the collapse merge them (`COST_LEAF` 1, 2 or 4) gave 26 %
+/// more smaller leaves and 10–15 % fewer triangle tests per ray, but no
+/// render time gain beyond the noise, for 20 % more build time and 50 %
+/// more peak memory at 4 M triangles.
+const COST_NODE: f32 = 1.0;
+const COST_LEAF: f32 = 1.0;
 
 /// Leaf units of `tris` triangles and `others` other primitives.
 fn units(tris: u32, others: u32) -> f32 {
