@@ -1,6 +1,6 @@
 //! The acceleration structure: an 8-wide BVH over every primitive of every
 //! shape. It is built as a binary SAH BVH (`accel/build.rs`, parallel) and
-//! collapsed to nodes that keep their eight child boxes in SoA form, so one
+//! collapsed, SAH-optimally (`accel/collapse.rs`), to nodes that keep their eight child boxes in SoA form, so one
 //! SIMD slab test checks all of them. The traversal is generic over the
 //! lanes type of `accel/simd.rs` and compiled three times: AVX-512, AVX2 +
 //! FMA and portable (SSE2 / NEON); which one runs is chosen at run time
@@ -41,6 +41,7 @@
 //! packets pay those once per eight boxes or triangles.
 
 mod build;
+mod collapse;
 mod quant;
 mod simd;
 mod stats;
@@ -746,10 +747,9 @@ impl Accel {
         accel.tris.reserve_exact(n_tris as usize);
         accel.leaves.reserve_exact(n_leaves);
         accel.nodes.reserve_exact(n_leaves);
-        let mut c = Collapse { bvh2: &bvh2, mesh_first: &mesh_first, others: &others, other_refs: &other_refs, accel: &mut accel, max_depth: 0, sah: 0.0 };
-        c.node(0, 1);
-        c.accel.sah = c.sah / (bvh2.nodes[0].bounds().half_area() as f64).max(f64::MIN_POSITIVE);
-        assert!((WIDTH as u32 - 1) * c.max_depth + 1 < STACK as u32, "BVH too deep for the traversal stack");
+        let (max_depth, sah) = collapse::Collapse::new(&bvh2, &mesh_first, &others, &other_refs, &mut accel).run();
+        accel.sah = sah / (bvh2.nodes[0].bounds().half_area() as f64).max(f64::MIN_POSITIVE);
+        assert!((WIDTH as u32 - 1) * max_depth + 1 < STACK as u32, "BVH too deep for the traversal stack");
         drop(bvh2);
         accel.nodes.shrink_to_fit();
         accel.leaves.shrink_to_fit();
@@ -1442,80 +1442,6 @@ impl Accel {
     pub fn bounds(&self, _shapes: &[Shape]) -> (Vec3, Vec3) {
         let (lo, hi) = self.extent;
         if lo.x > hi.x { (Vec3::splat(-1.0), Vec3::splat(1.0)) } else { (lo, hi) }
-    }
-}
-
-/// Collapses the binary BVH into `Accel`'s wide one.
-struct Collapse<'a> {
-    bvh2: &'a build::Bvh2,
-    /// First triangle id of each mesh.
-    mesh_first: &'a [u32],
-    others: &'a [PrimGeom],
-    other_refs: &'a [PrimRef],
-    accel: &'a mut Accel,
-    max_depth: u32,
-    /// Σ area × cost over the nodes and leaves emitted (`Accel::sah`).
-    sah: f64,
-}
-
-impl Collapse<'_> {
-    /// Emits the leaf of BVH2 node `n2`; returns its child code.
-    fn leaf(&mut self, n2: usize) -> u32 {
-        let node = self.bvh2.nodes[n2];
-        let a = &mut *self.accel;
-        let items = &self.bvh2.order[node.a as usize..(node.a + node.count) as usize];
-        let tri_start = a.tris.len() as u32;
-        let other_start = a.others.len() as u32;
-        for &id in items.iter().filter(|&&id| id & OTHER == 0) {
-            let mesh = self.mesh_first.partition_point(|&f| f <= id) - 1;
-            a.tris.push(TriRef { mesh: mesh as u32, prim: id - self.mesh_first[mesh] });
-        }
-        for &id in items.iter().filter(|&&id| id & OTHER != 0) {
-            let i = (id & !OTHER) as usize;
-            a.others.push(self.others[i].clone());
-            a.other_refs.push(self.other_refs[i]);
-        }
-        a.leaves.push(Leaf { tri_start, tri_end: a.tris.len() as u32, other_start, other_end: a.others.len() as u32 });
-        let units = (a.tris.len() - tri_start as usize).div_ceil(PACKET) + (a.others.len() - other_start as usize);
-        self.sah += node.bounds().half_area() as f64 * units as f64;
-        LEAF | (a.leaves.len() as u32 - 1)
-    }
-
-    /// Emits a wide node for BVH2 node `n2` (a root that is a leaf gets a
-    /// node with that one child); returns its index.
-    fn node(&mut self, n2: usize, depth: u32) -> u32 {
-        self.max_depth = self.max_depth.max(depth);
-        self.sah += self.bvh2.nodes[n2].bounds().half_area() as f64;
-        let id = self.accel.nodes.len();
-        let (inf, ninf) = ([f32::INFINITY; WIDTH], [f32::NEG_INFINITY; WIDTH]);
-        self.accel.nodes.push(Node { b: [inf, inf, inf, ninf, ninf, ninf], children: [0; WIDTH] });
-        let is_inner = |k: usize| self.bvh2.nodes[k].is_inner();
-        // Open the largest inner child until the node is full.
-        let mut kids = vec![n2];
-        while kids.len() < WIDTH {
-            let best = (0..kids.len())
-                .filter(|&i| is_inner(kids[i]))
-                .max_by(|&a, &b| self.bvh2.nodes[kids[a]].bounds().half_area().total_cmp(&self.bvh2.nodes[kids[b]].bounds().half_area()));
-            let Some(i) = best else { break };
-            let inner = self.bvh2.nodes[kids[i]];
-            kids[i] = inner.a as usize;
-            kids.push(inner.b as usize);
-        }
-        let mut bounds = [[0.0f32; WIDTH]; 6];
-        for (slot, row) in bounds.iter_mut().enumerate() {
-            *row = [if slot < 3 { f32::INFINITY } else { f32::NEG_INFINITY }; WIDTH];
-        }
-        let mut children = [0u32; WIDTH];
-        for (slot, &k) in kids.iter().enumerate() {
-            children[slot] = if is_inner(k) { self.node(k, depth + 1) } else { self.leaf(k) };
-            let b = self.bvh2.nodes[k].bounds();
-            for a in 0..3 {
-                bounds[a][slot] = b.lo[a];
-                bounds[a + 3][slot] = b.hi[a];
-            }
-        }
-        self.accel.nodes[id] = Node { b: bounds, children };
-        id as u32
     }
 }
 
