@@ -219,7 +219,10 @@ fn pool_floor_through_water_matches_the_closed_form() {
     let indirect = POOL_SPPM.replace("</integrator>", r#"<string name="photons" value="indirect"/></integrator>"#);
     for (mode, img) in [
         ("rgb", pool_render::<Rgb>(POOL_SPPM, 48)),
-        ("spectral", pool_render::<Sampled>(POOL_SPPM, 48)),
+        // Spectral: an iteration's camera and photon paths share its
+        // wavelengths, so the colour converges with the iterations; at 48 the
+        // blue channel is still 3.1 % off (0.4 % at 96 and 192).
+        ("spectral", pool_render::<Sampled>(POOL_SPPM, 96)),
         ("rgb, photons = indirect", pool_render::<Rgb>(&indirect, 48)),
     ] {
         let m = mean(&img);
