@@ -156,15 +156,15 @@ pub struct Sink {
     avx2: bool,
 }
 
-/// Adds a narrow camera sample's terms to the narrow sums `narrow` of a sink
-/// `width` pixels wide: row j of the footprint starts at pixel `first` + j ·
-/// `width` and has the weights w = trunc(`wx`[i] · `wy`[j] · 2^20), each
-/// pixel gaining w · `rgb` (fixed point) and the weight's w · 2^32. Only for
-/// samples [`Sink::add_sample`] found narrow: weights within ±1, values
-/// below `NARROW_LIMIT`, the sink's `load` raised by the sample's bound, so
-/// no sum can overflow (every |sum| ≤ `load` ≤ i64::MAX).
+/// Calls `add` with each pixel's sums of a narrow camera sample's footprint
+/// in the narrow sums `narrow` of a sink `width` pixels wide, and the pixel's
+/// fixed-point weight w = trunc(`wx`[i] · `wy`[j] · 2^20): row j starts at
+/// pixel `first` + j · `width`. Only for samples [`Sink::add_sample`] found
+/// narrow: weights within ±1, values below `NARROW_LIMIT`, the sink's `load`
+/// raised by the sample's bound, so no sum can overflow (every |sum| ≤
+/// `load` ≤ i64::MAX).
 #[inline(always)]
-fn add_narrow_rows(narrow: &mut [[i64; 4]], width: usize, first: usize, wx: &[f32], wy: &[f32], rgb: [i64; 3]) {
+fn for_each_narrow_pixel(narrow: &mut [[i64; 4]], width: usize, first: usize, wx: &[f32], wy: &[f32], mut add: impl FnMut(&mut [i64; 4], i64)) {
     for (j, &wyj) in wy.iter().enumerate() {
         if wyj == 0.0 {
             continue;
@@ -176,13 +176,22 @@ fn add_narrow_rows(narrow: &mut [[i64; 4]], width: usize, first: usize, wx: &[f3
         // truncate to 0.
         let wy_scaled = wyj * WEIGHT_SCALE;
         for (n, &wxi) in dst.iter_mut().zip(wx) {
-            let w = narrow_weight(wxi, wy_scaled) as i64;
-            n[0] += w * rgb[0];
-            n[1] += w * rgb[1];
-            n[2] += w * rgb[2];
-            n[3] += w << VALUE_BITS;
+            add(n, narrow_weight(wxi, wy_scaled) as i64);
         }
     }
+}
+
+/// Adds a narrow camera sample's terms to the narrow sums: each pixel of the
+/// footprint ([`for_each_narrow_pixel`]) gains w · `rgb` (fixed point) and
+/// the weight's w · 2^32.
+#[inline(always)]
+fn add_narrow_rows(narrow: &mut [[i64; 4]], width: usize, first: usize, wx: &[f32], wy: &[f32], rgb: [i64; 3]) {
+    for_each_narrow_pixel(narrow, width, first, wx, wy, |n, w| {
+        n[0] += w * rgb[0];
+        n[1] += w * rgb[1];
+        n[2] += w * rgb[2];
+        n[3] += w << VALUE_BITS;
+    });
 }
 
 /// A pixel's fixed-point weight trunc(`wx` · `wy_scaled`), both weights
@@ -215,22 +224,14 @@ unsafe fn add_narrow_rows_avx2(narrow: &mut [[i64; 4]], width: usize, first: usi
     // The weight's value 2^32: lo 0, hi 1.
     let lo = _mm256_set_epi64x(0, b0, g0, r0);
     let hi = _mm256_set_epi64x(1, b1, g1, r1);
-    for (j, &wyj) in wy.iter().enumerate() {
-        if wyj == 0.0 {
-            continue;
-        }
-        let row = first + j * width;
-        let Some(dst) = narrow.get_mut(row..row + wx.len()) else { continue };
-        let wy_scaled = wyj * WEIGHT_SCALE;
-        for (n, &wxi) in dst.iter_mut().zip(wx) {
-            let w = _mm256_set1_epi64x(narrow_weight(wxi, wy_scaled) as i64);
-            let t = _mm256_add_epi64(_mm256_mul_epi32(w, lo), _mm256_slli_epi64::<32>(_mm256_mul_epi32(w, hi)));
-            let p = n.as_mut_ptr() as *mut __m256i;
-            // SAFETY: `p` points to the pixel's four i64 sums (32 bytes);
-            // unaligned loads and stores.
-            unsafe { _mm256_storeu_si256(p, _mm256_add_epi64(_mm256_loadu_si256(p), t)) };
-        }
-    }
+    for_each_narrow_pixel(narrow, width, first, wx, wy, |n, w| {
+        let w = _mm256_set1_epi64x(w);
+        let t = _mm256_add_epi64(_mm256_mul_epi32(w, lo), _mm256_slli_epi64::<32>(_mm256_mul_epi32(w, hi)));
+        let p = n.as_mut_ptr() as *mut __m256i;
+        // SAFETY: `p` points to the pixel's four i64 sums (32 bytes);
+        // unaligned loads and stores.
+        unsafe { _mm256_storeu_si256(p, _mm256_add_epi64(_mm256_loadu_si256(p), t)) };
+    });
 }
 
 /// Samples whose largest fixed-point value (colour, and the weight's 1) is
