@@ -221,7 +221,8 @@ fn pool_floor_through_water_matches_the_closed_form() {
         ("rgb", pool_render::<Rgb>(POOL_SPPM, 48)),
         // Spectral: an iteration's camera and photon paths share its
         // wavelengths, so the colour converges with the iterations; at 48 the
-        // blue channel is still 3.1 % off (0.4 % at 96 and 192).
+        // blue channel is still 3.1 % off (every channel within 0.9 % at 96
+        // and 192 iterations).
         ("spectral", pool_render::<Sampled>(POOL_SPPM, 96)),
         ("rgb, photons = indirect", pool_render::<Rgb>(&indirect, 48)),
     ] {
