@@ -28,6 +28,34 @@ use crate::math::{RAY_EPSILON, SHADOW_EPSILON};
 /// Lanes per chunk.
 pub const LANES: usize = 16;
 
+/// Runs the kernel body `$body` (`#[inline(always)]`) on `$chunks`,
+/// compiled for the CPU's level: inside a function with AVX-512's or
+/// AVX2's features enabled, or as plain code (baseline x86-64, other
+/// CPUs). One body, three compilations, as the BVH's traversal.
+macro_rules! dispatch {
+    ($level:expr, $body:ident, $chunks:expr, $chunk:ty) => {{
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,bmi1,bmi2,popcnt,lzcnt")]
+        unsafe fn avx512(chunks: &mut [$chunk]) {
+            $body(chunks)
+        }
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2,bmi1,bmi2,popcnt,lzcnt")]
+        unsafe fn avx2(chunks: &mut [$chunk]) {
+            $body(chunks)
+        }
+        match $level {
+            // SAFETY: the accelerator's level is one the CPU supports.
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx512 => unsafe { avx512($chunks) },
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => unsafe { avx2($chunks) },
+            _ => $body($chunks),
+        }
+    }};
+}
+
+
 /// One chunk of area-light samples: inputs (shading point, its geometric
 /// normal, the 2-D sample already re-scaled within the picked triangle,
 /// the triangle's corners and unit normal, 1 / the light's area) and
@@ -75,26 +103,7 @@ pub struct AreaChunk {
 /// branch) and `Scene::sample_emitter_ray` compute, before the radiance
 /// and the selection's probability are divided in.
 pub fn area_light_directions(level: SimdLevel, chunks: &mut [AreaChunk]) {
-    match level {
-        // SAFETY: the accelerator's level is one the CPU supports.
-        #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx512 => unsafe { area_avx512(chunks) },
-        #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx2 => unsafe { area_avx2(chunks) },
-        _ => area_body(chunks),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,bmi1,bmi2,popcnt,lzcnt")]
-unsafe fn area_avx512(chunks: &mut [AreaChunk]) {
-    area_body(chunks)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,bmi1,bmi2,popcnt,lzcnt")]
-unsafe fn area_avx2(chunks: &mut [AreaChunk]) {
-    area_body(chunks)
+    dispatch!(level, area_body, chunks, AreaChunk)
 }
 
 /// glam's `Vec3::max_element` on one component triple.
@@ -179,26 +188,7 @@ fn area_body(chunks: &mut [AreaChunk]) {
 /// in the shading frame, the power heuristic (`math::mis_power`) and
 /// throughput · f · weight · w.
 pub fn diffuse_light_contributions(level: SimdLevel, chunks: &mut [AreaChunk]) {
-    match level {
-        // SAFETY: the accelerator's level is one the CPU supports.
-        #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx512 => unsafe { contrib_avx512(chunks) },
-        #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx2 => unsafe { contrib_avx2(chunks) },
-        _ => contrib_body(chunks),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,bmi1,bmi2,popcnt,lzcnt")]
-unsafe fn contrib_avx512(chunks: &mut [AreaChunk]) {
-    contrib_body(chunks)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,bmi1,bmi2,popcnt,lzcnt")]
-unsafe fn contrib_avx2(chunks: &mut [AreaChunk]) {
-    contrib_body(chunks)
+    dispatch!(level, contrib_body, chunks, AreaChunk)
 }
 
 #[inline(always)]
@@ -284,26 +274,7 @@ pub struct DiffuseChunk {
 /// disk and `sin_cos_quarter`, `cosine_hemisphere_pdf`), `Frame::to_world`
 /// and `SurfaceInteraction::spawn_origin` compute.
 pub fn diffuse_directions(level: SimdLevel, chunks: &mut [DiffuseChunk]) {
-    match level {
-        // SAFETY: the accelerator's level is one the CPU supports.
-        #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx512 => unsafe { diffuse_avx512(chunks) },
-        #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx2 => unsafe { diffuse_avx2(chunks) },
-        _ => diffuse_body(chunks),
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw,avx2,bmi1,bmi2,popcnt,lzcnt")]
-unsafe fn diffuse_avx512(chunks: &mut [DiffuseChunk]) {
-    diffuse_body(chunks)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,bmi1,bmi2,popcnt,lzcnt")]
-unsafe fn diffuse_avx2(chunks: &mut [DiffuseChunk]) {
-    diffuse_body(chunks)
+    dispatch!(level, diffuse_body, chunks, DiffuseChunk)
 }
 
 #[inline(always)]
