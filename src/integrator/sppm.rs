@@ -100,6 +100,7 @@ use crate::film::{FilmState, Filter, Image, Sink};
 use crate::geometry::{Ray, SurfaceInteraction};
 use crate::emitter::ShadingPoint;
 use crate::integrator::path::{escaped_weight, hit_weight, next_event};
+use crate::math::rounding::{floor_i32, floor_i64};
 use crate::integrator::ptracer::shading_correction;
 use crate::math::rng::mix64;
 use crate::render::{PassReport, RenderOptions, RenderStats};
@@ -301,22 +302,6 @@ impl Grid {
         let b = hash_cell(self.cell(p), self.starts.len() - 1);
         &self.items[self.starts[b] as usize..self.starts[b + 1] as usize]
     }
-}
-
-/// `x.floor() as i32` (saturating, NaN to 0) without a call to the C
-/// library's `floorf` (which the default x86-64 target makes of `floor`).
-#[inline]
-pub(crate) fn floor_i32(x: f32) -> i32 {
-    let i = x as i32;
-    i.saturating_sub((x < i as f32) as i32)
-}
-
-/// `x.floor() as i64` for |x| < 2^53 without a call to the C library's
-/// `floor`.
-#[inline]
-fn floor_i64(x: f64) -> i64 {
-    let i = x as i64;
-    i - (x < i as f64) as i64
 }
 
 #[inline]
@@ -640,18 +625,11 @@ fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
 
 #[cfg(test)]
 mod tests {
-    use super::{floor_i32, floor_i64, Grid, PixelStats, VisiblePoint};
+    use super::{Grid, PixelStats, VisiblePoint};
     use crate::geometry::SurfaceInteraction;
     use crate::math::Pcg32;
     use crate::spectrum::{Rgb, Spectrum};
     use glam::Vec3;
-
-    #[test]
-    fn floor_i64_is_floor_as_i64() {
-        for x in [0.0f64, -0.0, 0.5, -0.5, 1.0, -1.0, 2.999, -2.999, 65535.99, -65535.99, 1e15 + 0.5, -1e15 - 0.5] {
-            assert_eq!(floor_i64(x), x.floor() as i64, "{x}");
-        }
-    }
 
     /// Every visible point within its radius of a query is found, and no
     /// other, and each once, on points of many radii (the cells are sized by
@@ -709,12 +687,6 @@ mod tests {
         assert!(found > 2000, "the queries reach points ({found})");
     }
 
-    #[test]
-    fn floor_i32_is_floor_as_i32() {
-        for x in [0.0f32, -0.0, 0.5, -0.5, 1.0, -1.0, 2.999, -2.999, 1e9, -1e9, 3e9, -3e9, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 8388607.5, -8388607.5] {
-            assert_eq!(floor_i32(x), x.floor() as i32, "{x}");
-        }
-    }
 }
 
 /// One iteration's photon sums per pixel.

@@ -85,7 +85,7 @@ use crate::geometry::{Ray, SurfaceInteraction};
 use crate::integrator::bdpt::{camera_pdf, emission_pdf, other, transmittance};
 use crate::integrator::path::escaped_weight;
 use crate::integrator::ptracer::shading_correction;
-use crate::integrator::sppm::floor_i32;
+use crate::math::rounding::floor_i32;
 use crate::math::rng::mix64;
 use crate::render::RenderOptions;
 use crate::sampler::{Sampler, SamplerKind, SamplerSpec};

@@ -4,6 +4,7 @@
 
 pub mod frame;
 pub mod rng;
+pub mod rounding;
 pub mod sampling;
 pub mod transform;
 pub mod trig;
