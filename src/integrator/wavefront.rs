@@ -308,7 +308,14 @@ fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u3
     let offset = Vec2::new(ox as f32, oy as f32);
     for &(x, index) in jobs {
         let mut sampler = Sampler::start(&scene.sampler, x + ox, y + oy, index);
-        let wl = S::sample_wavelengths(sampler.next_1d());
+        // A spectrum with no wavelengths (RGB: a zero-sized type) cannot use
+        // the draw: skip it (the sample's later draws stay the same).
+        let wl = if std::mem::size_of::<S::Wavelengths>() == 0 {
+            sampler.skip_1d();
+            S::sample_wavelengths(0.0)
+        } else {
+            S::sample_wavelengths(sampler.next_1d())
+        };
         let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
         let ray = scene.camera.sample_ray((pos + offset) * cam.inv_size, &mut sampler);
         q.sampler.push(sampler);

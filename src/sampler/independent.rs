@@ -32,6 +32,12 @@ impl Independent {
         self.rng.next_f32()
     }
 
+    /// Advances the stream by one number without converting it.
+    #[inline]
+    pub fn skip_1d(&mut self) {
+        self.rng.next_u32();
+    }
+
     #[inline]
     pub fn next_2d(&mut self) -> Vec2 {
         let x = self.rng.next_f32();

@@ -44,7 +44,7 @@ impl LdSampler {
         LdSampler { id, dimension, dim: 0 }
     }
 
-    #[inline]
+    #[inline(always)]
     fn draw(&mut self) -> Option<(u64, u64)> {
         let d = self.dim;
         self.dim += 1;
@@ -57,7 +57,7 @@ impl LdSampler {
         Some((i as u64, mix64(h)))
     }
 
-    #[inline]
+    #[inline(never)]
     pub fn next_1d(&mut self) -> f32 {
         match self.draw() {
             Some((i, shift)) => unit(sobol0(i) ^ shift as u32),
@@ -65,7 +65,7 @@ impl LdSampler {
         }
     }
 
-    #[inline]
+    #[inline(never)]
     pub fn next_2d(&mut self) -> Vec2 {
         match self.draw() {
             Some((i, shift)) => Vec2::new(unit(sobol0(i) ^ shift as u32), unit(sobol1(i) ^ (shift >> 32) as u32)),

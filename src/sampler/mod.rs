@@ -243,6 +243,9 @@ impl Sampler {
         self.next_1d_patterned()
     }
 
+    /// The patterned samplers' draws, each its own out-of-line function:
+    /// the dispatch is a jump, and each draw saves only the registers it
+    /// uses (one function with every sampler inlined saved them all).
     #[inline(never)]
     fn next_1d_patterned(&mut self) -> f32 {
         match &mut self.method {
@@ -279,6 +282,22 @@ impl Sampler {
 }
 
 impl Sampler {
+    /// Takes a 1-D draw without computing it: the next draws are those
+    /// after a [`Sampler::next_1d`] (for a draw whose value is unused, as
+    /// the wavelength draw in RGB mode).
+    #[inline]
+    pub fn skip_1d(&mut self) {
+        match &mut self.method {
+            Method::Independent(s) => s.skip_1d(),
+            Method::Stratified(s) => s.dim += 1,
+            Method::Multijitter(s) => s.dim += 1,
+            Method::Orthogonal(s) => s.coord += 1,
+            Method::LdSampler(s) => s.dim += 1,
+            Method::Sobol(s) => s.dim += 1,
+            Method::ZSobol(s) => s.dim += 1,
+        }
+    }
+
     /// Continues the sample at draw number `dim`: the next draw is the one
     /// a fresh sample would make after `dim` draws. Splitting integrators
     /// give each split branch its own fixed block of dimensions, so that a
@@ -340,15 +359,26 @@ pub(crate) fn uniform(pixel_seed: u64, index: u32, dim: u32) -> f32 {
 /// Element `i` of a pseudo-random permutation of [0, n) chosen by `seed`
 /// (Kensler 2013, "Correlated Multi-Jittered Sampling": a hash that is a
 /// bijection on the next power of two, cycle-walked down to [0, n)).
-pub(crate) fn permute(mut i: u32, n: u32, seed: u32) -> u32 {
+///
+/// Inline for powers of two (one round, no cycle walk: the samplers' common
+/// case, drawn several times per sample), out of line otherwise.
+#[inline(always)]
+pub(crate) fn permute(i: u32, n: u32, seed: u32) -> u32 {
+    if n.is_power_of_two() {
+        // One round: the hash is a bijection on [0, n) (n = 1 gives 0).
+        return (kensler_round(i, seed, n - 1)).wrapping_add(seed) & (n - 1);
+    }
+    permute_walk(i, n, seed)
+}
+
+/// [`permute`] for `n` not a power of two: cycle-walk the hash on the next
+/// power of two down to [0, n).
+#[inline(never)]
+fn permute_walk(mut i: u32, n: u32, seed: u32) -> u32 {
     if n <= 1 {
         return 0;
     }
     let p = seed;
-    if n.is_power_of_two() {
-        // One round: the hash is a bijection on [0, n), no cycle walk.
-        return (kensler_round(i, p, n - 1)).wrapping_add(p) & (n - 1);
-    }
     let mut w = n - 1;
     w |= w >> 1;
     w |= w >> 2;
@@ -573,6 +603,35 @@ pub(crate) mod testing {
 mod set_dimension_tests {
     use super::testing::spec;
     use super::*;
+
+    /// `skip_1d` leaves a sample where `next_1d` would, for every sampler.
+    #[test]
+    fn skip_1d_is_an_unused_next_1d() {
+        let kinds = [
+            SamplerKind::Independent,
+            SamplerKind::Stratified { jitter: true, dimension: 3 },
+            SamplerKind::Multijitter { jitter: true },
+            SamplerKind::Orthogonal { jitter: true, strength: 2 },
+            SamplerKind::LdSampler { dimension: 4 },
+            SamplerKind::Sobol,
+            SamplerKind::ZSobol { log2_res: 0 },
+        ];
+        for kind in kinds {
+            let spec = spec(kind, 16, 3);
+            for index in [0, 5, 16, 40] {
+                let (mut drawn, mut skipped) = (Sampler::start(&spec, 2, 3, index), Sampler::start(&spec, 2, 3, index));
+                for d in 0..12 {
+                    if d % 4 == 0 {
+                        drawn.next_1d();
+                        skipped.skip_1d();
+                    } else {
+                        assert_eq!(drawn.next_2d(), skipped.next_2d(), "{}: draw {d}", kind.name());
+                        assert_eq!(drawn.next_1d(), skipped.next_1d(), "{}: draw {d}", kind.name());
+                    }
+                }
+            }
+        }
+    }
 
     /// After `set_dimension(d)` a sample draws what a fresh one draws after
     /// d draws, for every sampler (`independent` just goes on).

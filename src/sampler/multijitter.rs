@@ -71,7 +71,7 @@ impl Multijitter {
         if self.jitter { uniform2(self.id.pixel_seed, self.id.index, self.dim) } else { (0.5, 0.5) }
     }
 
-    #[inline]
+    #[inline(never)]
     pub fn next_1d(&mut self) -> f32 {
         let s = permute(self.id.index, self.id.count, dim_hash(self.id.pixel_seed, self.dim) as u32);
         let t = s as f32 + self.offset().0;
@@ -84,7 +84,7 @@ impl Multijitter {
         v
     }
 
-    #[inline]
+    #[inline(never)]
     pub fn next_2d(&mut self) -> Vec2 {
         // Three permutation seeds from one hash of the draw.
         let h = dim_hash(self.id.pixel_seed, self.dim);

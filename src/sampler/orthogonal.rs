@@ -56,35 +56,56 @@ pub(crate) struct Orthogonal {
     id: SampleId,
     p: u32,
     strength: u32,
+    /// p^strength: the array's rows (the samples of a pattern).
+    n: u32,
     jitter: bool,
     /// Coordinates drawn so far.
     pub(super) coord: u32,
+    /// The array whose row is cached below (`u32::MAX`: none yet). A draw
+    /// takes p columns of one array, all from the same permuted row.
+    array: u32,
+    /// The cached row: the sample's index under the array's permutation.
+    row: u32,
 }
 
 impl Orthogonal {
     pub fn start(id: SampleId, jitter: bool, strength: u32) -> Orthogonal {
         let strength = strength.max(1);
         let p = prime_base(id.count, strength);
-        Orthogonal { id, p, strength, jitter, coord: 0 }
+        let n = p.pow(strength);
+        Orthogonal { id, p, strength, n, jitter, coord: 0, array: u32::MAX, row: 0 }
     }
 
+    /// The sample's row in array `array` (its index under the array's
+    /// permutation), cached.
     #[inline]
+    fn row(&mut self, array: u32) -> u32 {
+        if array != self.array {
+            self.row = permute(self.id.index, self.n, (dim_hash(self.id.pixel_seed ^ 0x0a77_a700, array) >> 32) as u32);
+            self.array = array;
+        }
+        self.row
+    }
+
+    #[inline(never)]
     pub fn next_1d(&mut self) -> f32 {
         let c = self.coord;
         self.coord += 1;
-        let (p, seed) = (self.p, self.id.pixel_seed);
-        let n = p.pow(self.strength);
+        let (p, n, seed) = (self.p, self.n, self.id.pixel_seed);
         if self.id.count != n {
             // A sample count set past the loader that is not p^t: no array.
             return uniform(seed, self.id.index, c);
         }
         let (array, column) = (c / p, c % p);
-        let i = permute(self.id.index, n, (dim_hash(seed ^ 0x0a77_a700, array) >> 32) as u32);
-        // Horner's rule over the digits, most significant first.
-        let mut symbol = 0u64;
-        for l in (0..self.strength).rev() {
-            let digit = (i / p.pow(l)) % p;
-            symbol = (symbol * column as u64 + digit as u64) % p as u64;
+        let i = self.row(array);
+        // The polynomial Σ a_l column^l mod p over the row's base-p digits
+        // a_l, least significant first.
+        let (pp, column) = (p as u64, column as u64);
+        let (mut symbol, mut power, mut rest) = (0u64, 1u64, i as u64);
+        for _ in 0..self.strength {
+            symbol = (symbol + (rest % pp) * power) % pp;
+            power = power * column % pp;
+            rest /= pp;
         }
         let sub_n = n / p;
         let h = dim_hash(seed, c);
@@ -94,7 +115,7 @@ impl Orthogonal {
         ((stratum as f32 + (sub as f32 + j) / sub_n as f32) / p as f32).min(ONE_MINUS_EPSILON)
     }
 
-    #[inline]
+    #[inline(never)]
     pub fn next_2d(&mut self) -> Vec2 {
         let x = self.next_1d();
         Vec2::new(x, self.next_1d())

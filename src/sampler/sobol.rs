@@ -62,7 +62,7 @@ pub(crate) fn sobol1(index: u64) -> u32 {
 
 /// [`sobol1`] with its bits reversed (the fraction's top bit as bit 0).
 #[inline]
-pub(crate) fn sobol1_reversed(index: u64) -> u32 {
+pub(crate) const fn sobol1_reversed(index: u64) -> u32 {
     let mut z = index;
     z ^= (z >> 1) & 0x5555_5555_5555_5555;
     z ^= (z >> 2) & 0x3333_3333_3333_3333;
@@ -71,6 +71,24 @@ pub(crate) fn sobol1_reversed(index: u64) -> u32 {
     z ^= (z >> 16) & 0x0000_ffff_0000_ffff;
     z ^= z >> 32;
     z as u32
+}
+
+/// [`sobol1_reversed`] of indices below 256 (a pixel's samples up to 256
+/// spp): the transform keeps an index's bits within its byte.
+const SOBOL1_REVERSED_BYTE: [u8; 256] = {
+    let mut t = [0u8; 256];
+    let mut i = 0;
+    while i < 256 {
+        t[i] = sobol1_reversed(i as u64) as u8;
+        i += 1;
+    }
+    t
+};
+
+/// [`sobol1_reversed`], by a table lookup for indices below 256.
+#[inline(always)]
+fn sobol1_reversed_small(index: u64) -> u32 {
+    if index < 256 { SOBOL1_REVERSED_BYTE[index as usize] as u32 } else { sobol1_reversed(index) }
 }
 
 /// [`sobol1`] by the matrix's columns, one per index bit (the definition;
@@ -132,20 +150,20 @@ impl Sobol {
         (i as u64, g as u32, (g >> 32) as u32)
     }
 
-    #[inline]
+    #[inline(never)]
     pub fn next_1d(&mut self) -> f32 {
         let (i, a, _) = self.draw();
         // owen_scramble(sobol0(i), a) without its two cancelling bit reversals.
         unit(laine_karras(i as u32, a).reverse_bits())
     }
 
-    #[inline]
+    #[inline(never)]
     pub fn next_2d(&mut self) -> Vec2 {
         let (i, a, b) = self.draw();
         // owen_scramble of dimensions 0 and 1 on reversed bits (dimension
         // 0's reversal cancels, dimension 1's superset transform comes out
         // reversed), and one 64-bit reversal for the two.
-        let both = (((laine_karras(i as u32, a) as u64) << 32) | laine_karras(sobol1_reversed(i), b) as u64).reverse_bits();
+        let both = (((laine_karras(i as u32, a) as u64) << 32) | laine_karras(sobol1_reversed_small(i), b) as u64).reverse_bits();
         Vec2::new(unit(both as u32), unit((both >> 32) as u32))
     }
 }
@@ -179,6 +197,14 @@ mod tests {
                 assert_eq!(sobol1(idx), sobol1_by_columns(idx), "index {idx:#x}");
             }
         }
+    }
+
+    #[test]
+    fn the_byte_table_is_the_transform() {
+        for i in 0..1024u64 {
+            assert_eq!(sobol1_reversed_small(i), sobol1_reversed(i), "index {i}");
+        }
+        assert!((0..256u64).all(|i| sobol1_reversed(i) < 256));
     }
 
     #[test]

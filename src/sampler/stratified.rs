@@ -58,7 +58,7 @@ impl Stratified {
         if self.jitter { uniform2(self.id.pixel_seed, self.id.index, self.dim) } else { (0.5, 0.5) }
     }
 
-    #[inline]
+    #[inline(never)]
     pub fn next_1d(&mut self) -> f32 {
         let d = self.dim;
         let v = if d >= self.dimension {
@@ -71,7 +71,7 @@ impl Stratified {
         v
     }
 
-    #[inline]
+    #[inline(never)]
     pub fn next_2d(&mut self) -> Vec2 {
         let d = self.dim;
         let v = if d >= self.dimension {

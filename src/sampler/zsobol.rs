@@ -203,14 +203,14 @@ impl ZSobol {
         (i, h as u32, (h >> 32) as u32)
     }
 
-    #[inline]
+    #[inline(never)]
     pub fn next_1d(&mut self) -> f32 {
         let (i, a, _) = self.draw();
         // owen_scramble(sobol0(i)) without its two cancelling bit reversals.
         unit(laine_karras(i as u32, a).reverse_bits())
     }
 
-    #[inline]
+    #[inline(never)]
     pub fn next_2d(&mut self) -> Vec2 {
         let (i, a, b) = self.draw();
         // Both dimensions scrambled on reversed bits (dimension 0's reversal
