@@ -93,6 +93,7 @@ use crate::math::mis_power;
 use crate::sampler::Sampler;
 use crate::scene::Scene;
 use crate::spectrum::{Rgb, Spectrum};
+use crate::texture::Texture;
 use glam::{Vec2, Vec3};
 use std::ops::Range;
 use std::sync::OnceLock;
@@ -185,6 +186,10 @@ pub struct Queues<S: Spectrum> {
     /// Diffuse lanes for the BSDF-sampling kernel, and their paths.
     diffuse: Vec<DiffuseChunk>,
     diffuse_lane: Vec<u32>,
+    /// Their BSDF weights (the reflectance), found while the lanes are
+    /// gathered: once per run of the sorted lanes where it is the same for
+    /// all of them (a constant colour in RGB).
+    diffuse_weight: Vec<S>,
     /// Counting sort by BSDF.
     bsdf_of: Vec<u32>,
     counts: Vec<u32>,
@@ -262,6 +267,7 @@ impl<S: Spectrum> Default for Queues<S> {
             lit_lane: Vec::with_capacity(BATCH),
             diffuse: Vec::new(),
             diffuse_lane: Vec::with_capacity(BATCH),
+            diffuse_weight: Vec::with_capacity(BATCH),
             bsdf_of: Vec::with_capacity(BATCH),
             counts: vec![],
             kernel_lights: vec![],
@@ -599,26 +605,39 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     }
 }
 
+/// The per-path columns BSDF sampling reads and writes, each cut to the
+/// batch's length once: one bounds check per lane then serves them all.
+struct Columns<'a, S: Spectrum> {
+    si: &'a [SurfaceInteraction],
+    wl: &'a [S::Wavelengths],
+    sampler: &'a mut [Sampler],
+    ctx: &'a mut [BsdfContext],
+    throughput: &'a mut [S],
+    eta: &'a mut [f32],
+    prev: &'a mut [Prev],
+    ray: &'a mut [Ray],
+}
+
 /// A path past its BSDF sample (weight, η, density, lobe; the next ray's
 /// origin and direction), then Russian roulette from `rr_depth` on, as
 /// `path` does: whether the path goes on.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn advance<S: Spectrum>(q: &mut Queues<S>, i: usize, weight: S, eta: f32, pdf: f32, lobe: Lobe, o: Vec3, d: Vec3, rr: bool) -> bool {
-    let si = &q.si[i];
-    q.ctx[i] = q.ctx[i].following(lobe);
-    q.throughput[i] *= weight;
-    q.eta[i] *= eta;
-    q.prev[i] = Prev { p: si.p, n: si.frame.n, pdf, delta: lobe.intersects(Lobe::DELTA) };
-    q.ray[i] = Ray::new(o, d);
-    let t_max = q.throughput[i].max_component();
+fn advance<S: Spectrum>(c: &mut Columns<'_, S>, i: usize, weight: S, eta: f32, pdf: f32, lobe: Lobe, o: Vec3, d: Vec3, rr: bool) -> bool {
+    let si = &c.si[i];
+    c.ctx[i] = c.ctx[i].following(lobe);
+    c.throughput[i] *= weight;
+    c.eta[i] *= eta;
+    c.prev[i] = Prev { p: si.p, n: si.frame.n, pdf, delta: lobe.intersects(Lobe::DELTA) };
+    c.ray[i] = Ray::new(o, d);
+    let t_max = c.throughput[i].max_component();
     if rr {
-        let eta = q.eta[i];
+        let eta = c.eta[i];
         let p = (t_max * eta * eta).min(0.95);
-        if !(q.sampler[i].next_1d() < p) {
+        if !(c.sampler[i].next_1d() < p) {
             return false;
         }
-        q.throughput[i] *= 1.0 / p;
+        c.throughput[i] *= 1.0 / p;
     }
     t_max > 0.0
 }
@@ -694,54 +713,93 @@ fn sample_bsdfs<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut
     let rr = depth + 1 >= pt.rr_depth;
     q.next.clear();
     q.diffuse_lane.clear();
+    q.diffuse_weight.clear();
+    // A constant reflectance is the same weight for every lane where the
+    // spectrum has no wavelengths to depend on (RGB).
+    let no_wavelengths = std::mem::size_of::<S::Wavelengths>() == 0;
     let live = std::mem::take(&mut q.live);
-    for &i in &live {
-        let i = i as usize;
-        let si = &q.si[i];
-        let bsdf = scene.bsdf(si);
-        let sampler = &mut q.sampler[i];
-        let (u1, u2) = (sampler.next_1d(), sampler.next_2d());
-        // Diffuse lanes: their directions by the SIMD kernel below.
-        if let Bsdf::Diffuse(_) = bsdf {
-            if !(si.wi.z <= 0.0) && q.ctx[i].wants(Lobe::DIFFUSE_REFLECTION) {
-                let k = q.diffuse_lane.len();
-                if k % LANES == 0 && k / LANES == q.diffuse.len() {
-                    q.diffuse.push(DiffuseChunk::default());
-                }
-                let (ch, l) = (&mut q.diffuse[k / LANES], k % LANES);
-                for (dst, src) in [(&mut ch.s, si.frame.s), (&mut ch.t, si.frame.t), (&mut ch.fn_, si.frame.n), (&mut ch.p, si.p), (&mut ch.n, si.n)] {
-                    dst[0][l] = src.x;
-                    dst[1][l] = src.y;
-                    dst[2][l] = src.z;
-                }
-                ch.u[0][l] = u2.x;
-                ch.u[1][l] = u2.y;
-                q.diffuse_lane.push(i as u32);
-                continue;
+    let n = q.throughput.len();
+    let mut c = Columns::<S> {
+        si: &q.si[..n],
+        wl: &q.wl[..n],
+        sampler: &mut q.sampler[..n],
+        ctx: &mut q.ctx[..n],
+        throughput: &mut q.throughput[..n],
+        eta: &mut q.eta[..n],
+        prev: &mut q.prev[..n],
+        ray: &mut q.ray[..n],
+    };
+    // The sorted lanes in runs of one BSDF index (`counts[b]` is now the
+    // end of run b).
+    let mut start = 0;
+    for b in 0..q.counts.len() {
+        let end = q.counts[b] as usize;
+        let run = &live[start..end];
+        start = end;
+        let Some(&first) = run.first() else { continue };
+        // The run's BSDF where no shape passes rays through (else each
+        // lane's, `Scene::bsdf` of its shape), and its weight if constant.
+        let run_bsdf = if scene.pass_through { None } else { scene.bsdfs.get(b) };
+        let run_weight: Option<S> = match run_bsdf {
+            Some(Bsdf::Diffuse(d)) if no_wavelengths && matches!(d.reflectance, Texture::Constant(..)) => {
+                let first = first as usize;
+                Some(d.reflectance.eval_spectrum::<S>(&c.si[first], &c.wl[first]).depolarize())
             }
-        }
-        let Some(bs) = bsdf.sample_inline::<S>(&q.ctx[i], si, si.wi, u1, u2, &q.wl[i]) else { continue };
-        let d = si.to_world(bs.wo);
-        let o = si.spawn_origin(d);
-        if advance(q, i, bs.weight, bs.eta, bs.pdf, bs.lobe, o, d, rr) {
-            q.next.push(i as u32);
+            _ => None,
+        };
+        for &i in run {
+            let i = i as usize;
+            let si = &c.si[i];
+            let bsdf = match run_bsdf {
+                Some(b) => b,
+                None => scene.bsdf(si),
+            };
+            let sampler = &mut c.sampler[i];
+            let (u1, u2) = (sampler.next_1d(), sampler.next_2d());
+            // Diffuse lanes: their directions by the SIMD kernel below.
+            if let Bsdf::Diffuse(db) = bsdf {
+                if !(si.wi.z <= 0.0) && c.ctx[i].wants(Lobe::DIFFUSE_REFLECTION) {
+                    let k = q.diffuse_lane.len();
+                    if k % LANES == 0 && k / LANES == q.diffuse.len() {
+                        q.diffuse.push(DiffuseChunk::default());
+                    }
+                    let (ch, l) = (&mut q.diffuse[k / LANES], k % LANES);
+                    for (dst, src) in [(&mut ch.s, si.frame.s), (&mut ch.t, si.frame.t), (&mut ch.fn_, si.frame.n), (&mut ch.p, si.p), (&mut ch.n, si.n)] {
+                        dst[0][l] = src.x;
+                        dst[1][l] = src.y;
+                        dst[2][l] = src.z;
+                    }
+                    ch.u[0][l] = u2.x;
+                    ch.u[1][l] = u2.y;
+                    q.diffuse_lane.push(i as u32);
+                    let weight = match run_weight {
+                        Some(w) => w,
+                        None => db.reflectance.eval_spectrum::<S>(si, &c.wl[i]).depolarize(),
+                    };
+                    q.diffuse_weight.push(weight);
+                    continue;
+                }
+            }
+            let Some(bs) = bsdf.sample_inline::<S>(&c.ctx[i], si, si.wi, u1, u2, &c.wl[i]) else { continue };
+            let d = si.to_world(bs.wo);
+            let o = si.spawn_origin(d);
+            if advance(&mut c, i, bs.weight, bs.eta, bs.pdf, bs.lobe, o, d, rr) {
+                q.next.push(i as u32);
+            }
         }
     }
     if !q.diffuse_lane.is_empty() {
         let used = q.diffuse_lane.len().div_ceil(LANES);
         kernels::diffuse_directions(scene.accel.simd_level(), &mut q.diffuse[..used]);
-        for k in 0..q.diffuse_lane.len() {
-            let i = q.diffuse_lane[k] as usize;
+        for (k, (&i, &weight)) in q.diffuse_lane.iter().zip(&q.diffuse_weight).enumerate() {
+            let i = i as usize;
             let (ch, l) = (&q.diffuse[k / LANES], k % LANES);
             if !ch.ok[l] {
                 continue;
             }
             let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
             let (pdf, o, d) = (ch.pdf[l], v(&ch.o), v(&ch.d));
-            let si = &q.si[i];
-            let Bsdf::Diffuse(b) = scene.bsdf(si) else { continue };
-            let weight = b.reflectance.eval_spectrum::<S>(si, &q.wl[i]).depolarize();
-            if advance(q, i, weight, 1.0, pdf, Lobe::DIFFUSE_REFLECTION, o, d, rr) {
+            if advance(&mut c, i, weight, 1.0, pdf, Lobe::DIFFUSE_REFLECTION, o, d, rr) {
                 q.next.push(i as u32);
             }
         }
