@@ -72,6 +72,19 @@ fn pass_through_environment_and_materials_are_bit_identical_to_path() {
     }
 }
 
+/// A `constant` environment lighting `diffuse` surfaces (textured among
+/// them) takes the environment's kernels; its `twosided` bowl and the
+/// directional light take the scalar route. Both modes, every SIMD level.
+#[test]
+fn constant_environment_kernels_are_bit_identical_to_path() {
+    let mut scene = load("tests/scenes/mesh-env.xml", &[], &[("res", "48"), ("height", "36"), ("spp", "8")]);
+    assert_same::<Sampled>("mesh-env spectral", &scene);
+    for level in snell::geometry::accel::SimdLevel::ALL.into_iter().filter(|l| l.supported()) {
+        scene.accel.set_simd_level(level);
+        assert_same::<Rgb>(&format!("mesh-env {level:?}"), &scene);
+    }
+}
+
 #[test]
 fn spectral_mode_and_dispersion_are_bit_identical_to_path() {
     assert_same::<Sampled>("cornell spectral", &load("scenes/cornell-box.xml", &[], &[("res", "32"), ("spp", "8")]));

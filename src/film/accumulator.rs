@@ -76,7 +76,21 @@ pub fn term(w: i64, v: i64) -> i128 {
 /// A fixed-point sum back in film units.
 #[inline]
 pub fn unfixed(v: i128) -> f64 {
-    v as f64 / SCALE
+    wide_to_f64(v) / SCALE
+}
+
+/// `v as f64`, through the CPU's 64-bit conversion where `v` fits in an
+/// `i64` (nearly always: sums of values below 2^11 over 2^20 weights),
+/// instead of the library's 128-bit one. Both round the same integer to
+/// the nearest `f64` (ties to even), so the result is the same. (The
+/// `black_box` keeps the compiler from seeing that, which made it fold
+/// both branches back into the 128-bit call.)
+#[inline(always)]
+fn wide_to_f64(v: i128) -> f64 {
+    match i64::try_from(v) {
+        Ok(x) => std::hint::black_box(x) as f64,
+        Err(_) => v as f64,
+    }
 }
 
 /// Which sums a film keeps per pixel, in this order: the filtered camera
@@ -127,7 +141,9 @@ pub struct Sink {
     stokes_offset: usize,
     extra_offset: usize,
     n_extra: usize,
-    /// The sums, in fixed point: the wide accumulators.
+    /// The sums, in fixed point: the wide accumulators. Made (zeroed) when
+    /// first written to ([`Sink::wide`]): a sink whose samples all stay
+    /// narrow never needs them, nor the time to clear and add them.
     data: Vec<i128>,
     /// Colour and weight sums of camera samples in `i64` (cheaper to add
     /// to), moved into `data` before they could overflow (see `load`).
@@ -241,16 +257,26 @@ impl Sink {
             stokes_offset: layout.stokes_offset(),
             extra_offset: layout.extra_offset(),
             n_extra: layout.extra.len(),
-            data: vec![0; width * height * stride],
+            data: vec![],
             narrow: if layout.camera { vec![[0; 4]; width * height] } else { vec![] },
             load: 0,
             avx2: crate::geometry::accel::SimdLevel::current() >= crate::geometry::accel::SimdLevel::Avx2,
         }
     }
 
+    /// The wide sums, made (zeroed) on first use.
+    #[inline]
+    fn wide(&mut self) -> &mut Vec<i128> {
+        if self.data.is_empty() {
+            self.data = vec![0; self.width * self.height * self.stride];
+        }
+        &mut self.data
+    }
+
     /// Moves the narrow sums into the wide ones.
     fn flush_narrow(&mut self) {
         let stride = self.stride;
+        self.wide();
         for (px, n) in self.data.chunks_exact_mut(stride).zip(self.narrow.iter_mut()) {
             for k in 0..4 {
                 px[k] += n[k] as i128;
@@ -311,6 +337,7 @@ impl Sink {
                 return self.add_extra_of(x0, y0, &wx[..nx], &wy[..ny], extra);
             }
         }
+        self.wide();
         for j in 0..ny {
             if wy[j] == 0.0 {
                 continue;
@@ -358,6 +385,7 @@ impl Sink {
             *q = fixed_value(x);
         }
         let (stride, o) = (self.stride, self.extra_offset);
+        self.wide();
         for (j, &wyj) in wy.iter().enumerate() {
             let row = ((y0 - self.y0) as usize + j) * self.width + (x0 - self.x0) as usize;
             for (i, &wxi) in wx.iter().enumerate() {
@@ -392,6 +420,7 @@ impl Sink {
             return;
         }
         let v = [fixed_value(value[0]), fixed_value(value[1]), fixed_value(value[2])];
+        self.wide();
         for j in 0..ny {
             let y = y0 + j as i32 - self.y0;
             if y < 0 || y >= self.height as i32 || wy[j] == 0.0 {
@@ -427,6 +456,7 @@ impl Sink {
             return;
         }
         let SplatFootprint { x0, y0, nx, ny, wx, wy } = SplatFootprint::new(filter, pos);
+        self.wide();
         // value / mass in fixed point, recomputed only where the mass changes
         // (it is the same for every pixel away from the window's border).
         let (mut last_mass, mut v) = (f32::NAN, [0i64; 3]);
@@ -686,8 +716,9 @@ impl FilmState {
                 continue;
             }
             let dst = &mut self.data[(y as usize * w as usize + xs as usize) * stride..(y as usize * w as usize + xe as usize) * stride];
+            // (A sink whose samples all stayed narrow has no wide sums.)
             let s0 = (sy * sink.width + (xs - sx0) as usize) * stride;
-            for (d, s) in dst.iter_mut().zip(&sink.data[s0..]) {
+            for (d, s) in dst.iter_mut().zip(sink.data.get(s0..).unwrap_or_default()) {
                 *d = d.saturating_add(*s);
             }
             if !sink.narrow.is_empty() {
@@ -819,8 +850,8 @@ impl FilmState {
         let pixels_n = w as usize * ht as usize;
         let px = |i: usize| &self.data[i * stride..(i + 1) * stride];
         let normalize = |sum: &[i128], weight: i128| {
-            let wf = weight as f64;
-            let v = Rgb::new((sum[0] as f64 / wf) as f32, (sum[1] as f64 / wf) as f32, (sum[2] as f64 / wf) as f32);
+            let wf = wide_to_f64(weight);
+            let v = Rgb::new((wide_to_f64(sum[0]) / wf) as f32, (wide_to_f64(sum[1]) / wf) as f32, (wide_to_f64(sum[2]) / wf) as f32);
             if unfixed(weight) > 1e-9 && v.is_finite() { v } else { Rgb::BLACK }
         };
         let paths = h.samples_taken.max(1) as f64;
@@ -852,7 +883,7 @@ impl FilmState {
             let values = (0..pixels_n)
                 .map(|i| {
                     let p = px(i);
-                    let v = (p[o + k] as f64 / p[3] as f64) as f32;
+                    let v = (wide_to_f64(p[o + k]) / wide_to_f64(p[3])) as f32;
                     if p[3] > 0 && v.is_finite() { v } else { 0.0 }
                 })
                 .collect();
@@ -1017,6 +1048,23 @@ mod tests {
     }
 
     #[test]
+    fn wide_to_f64_rounds_as_the_128_bit_conversion() {
+        // Values within i64 (taking the 64-bit conversion, rounding where
+        // they pass 2^53) and beyond it (the 128-bit one).
+        let mut values = vec![0i128, 1, -1, i64::MAX as i128, i64::MIN as i128, i64::MAX as i128 + 1, i64::MIN as i128 - 1, i128::MAX, i128::MIN];
+        for k in 50..64 {
+            for d in [-3i128, -1, 0, 1, 3] {
+                values.push((1i128 << k) + d);
+                values.push(-(1i128 << k) + d);
+                values.push((3i128 << k) / 2 + 1 + d);
+            }
+        }
+        for v in values {
+            assert_eq!(wide_to_f64(v).to_bits(), (v as f64).to_bits(), "{v}");
+        }
+    }
+
+    #[test]
     fn box_filter_adds_into_one_pixel() {
         let layout = camera();
         let mut s = Sink::new(&layout, 0, 0, 4, 4);
@@ -1057,6 +1105,48 @@ mod tests {
         assert_eq!(state.data[i + 3], 700 * term(1 << WEIGHT_BITS, 1 << VALUE_BITS));
         assert_eq!(state.data[j], 1000 * term(1 << WEIGHT_BITS, fixed_value(15.5)));
         assert_eq!(state.data[j + 3], 1000 * term(1 << WEIGHT_BITS, 1 << VALUE_BITS));
+    }
+
+    /// The narrow sums, added by AVX2 (where the CPU has it) or by the
+    /// plain code, and the wide sums alone hold the same integers, for
+    /// footprints of 1 to 7 pixels a side.
+    #[test]
+    fn narrow_rows_avx2_plain_and_wide_add_the_same_integers() {
+        let layout = Layout { camera: true, splats: false, stokes: false, extra: vec![] };
+        let filters = [
+            Filter::new(FilterKind::Box),
+            Filter::new(FilterKind::Tent { radius: 1.5 }),
+            Filter::gaussian(0.5),
+            Filter::new(FilterKind::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 }),
+            Filter::new(FilterKind::Lanczos { lobes: 3 }),
+        ];
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        for filter in &filters {
+            let mut sinks = [true, false, false].map(|avx2| {
+                let mut s = Sink::new(&layout, -4, -4, 20, 20);
+                s.avx2 &= avx2;
+                s
+            });
+            sinks[2].narrow.clear();
+            for _ in 0..3000 {
+                let pos = Vec2::new(12.0 * next(), 12.0 * next());
+                let rgb = Rgb::new(15.0 * next() - 3.0, 2.0 * next(), 15.9 * next());
+                for s in sinks.iter_mut() {
+                    s.add_sample(filter, pos, rgb, None, &[]);
+                }
+            }
+            for s in sinks.iter_mut().take(2) {
+                s.flush_narrow();
+            }
+            assert!(sinks[0].data.iter().any(|&v| v != 0), "{filter:?}");
+            assert!(sinks[0].data == sinks[1].data && sinks[1].data == sinks[2].data, "{filter:?}");
+        }
     }
 
     #[test]

@@ -19,6 +19,7 @@
 //! | kernel | replaces | lanes |
 //! |---|---|---|
 //! | [`area_light_directions`] | `AreaLight::sample_direct` by area on a mesh light without vertex normals or texture (`Mesh::sample_position`, `PositionSample::towards`), then `Scene::sample_emitter_ray`'s shadow ray | paths at a smooth BSDF that picked such a light |
+//! | [`environment_light_rays`] | the shadow ray of a `constant` emitter's sample (`Scene::sample_emitter_ray`: from the spawn origin, to infinity); its direction (`square_to_uniform_sphere`, a libm sine and cosine) and density are filled in per lane | paths at a `diffuse` BSDF that picked a `constant` emitter (not in pass-through scenes) |
 //! | [`diffuse_light_contributions`] | the shading of those samples at a `diffuse` BSDF: the sample's weight, `Diffuse::eval_pdf`, `math::mis_power`, throughput · f · weight · w | the same lanes at a `diffuse` BSDF (not in pass-through scenes) |
 //! | [`diffuse_directions`] | `Diffuse::sample`'s direction and density (`square_to_cosine_hemisphere`), `Frame::to_world`, `SurfaceInteraction::spawn_origin` | paths at a `diffuse` BSDF lit from its front side |
 
@@ -104,6 +105,47 @@ pub struct AreaChunk {
 /// and the selection's probability are divided in.
 pub fn area_light_directions(level: SimdLevel, chunks: &mut [AreaChunk]) {
     dispatch!(level, area_body, chunks, AreaChunk)
+}
+
+/// The shadow rays of environment-emitter samples for the lanes of
+/// `chunks` whose direction `d` is filled (with the shading point `p` and
+/// its geometric normal `n`): `Scene::sample_emitter_ray`'s ray for a
+/// sample at infinity — from the spawn origin (`offset_origin`) along `d`
+/// without end. Every such sample stands (`ok`); [`diffuse_light_contributions`]
+/// then shades them as the area-light samples (`pdf`, `pmf` and the
+/// shading inputs filled too).
+pub fn environment_light_rays(level: SimdLevel, chunks: &mut [AreaChunk]) {
+    dispatch!(level, environment_body, chunks, AreaChunk)
+}
+
+#[inline(always)]
+fn environment_body(chunks: &mut [AreaChunk]) {
+    for ch in chunks.iter_mut() {
+        for k in 0..LANES {
+            let d = [ch.d[0][k], ch.d[1][k], ch.d[2][k]];
+            let o = spawn_origin([ch.p[0][k], ch.p[1][k], ch.p[2][k]], [ch.n[0][k], ch.n[1][k], ch.n[2][k]], d);
+            for j in 0..3 {
+                ch.ray_o[j][k] = o[j];
+                ch.ray_d[j][k] = d[j];
+            }
+            ch.tmax[k] = f32::INFINITY;
+            ch.ok[k] = true;
+        }
+    }
+}
+
+/// `geometry::ray::offset_origin(p, n, d)`: `p` moved along its geometric
+/// normal `n` (by (1 + max |p_i|) · ε) to the side `d` leaves to.
+#[inline(always)]
+fn spawn_origin(p: [f32; 3], n: [f32; 3], d: [f32; 3]) -> [f32; 3] {
+    let mag = (1.0 + max3(p[0].abs(), p[1].abs(), p[2].abs())) * RAY_EPSILON;
+    let front = n[0] * d[0] + n[1] * d[1] + n[2] * d[2] >= 0.0;
+    let mut o = [0.0f32; 3];
+    for j in 0..3 {
+        let off = n[j] * mag;
+        o[j] = if front { p[j] + off } else { p[j] - off };
+    }
+    o
 }
 
 /// glam's `Vec3::max_element` on one component triple.

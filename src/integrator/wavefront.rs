@@ -51,7 +51,12 @@
 //!    ([`super::kernels::diffuse_light_contributions`]: weight, Lambertian
 //!    value and pdf, MIS, contribution) before the shadow test, and only
 //!    those with a nonzero BSDF value get a shadow ray; their contribution
-//!    is added where the ray is not blocked;
+//!    is added where the ray is not blocked. Samples of a `constant`
+//!    environment at a `diffuse` BSDF take the same kernels (their
+//!    directions drawn per lane, their rays by
+//!    [`super::kernels::environment_light_rays`]), and the scalar route
+//!    evaluates the BSDF before its shadow ray too: a sample the BSDF does
+//!    not reflect (half of a uniform sphere's) is not traced;
 //! 4. BSDF sampling with the paths grouped by BSDF (a counting sort on the
 //!    shape's BSDF index), so that each BSDF's code and data stay hot while
 //!    its paths are sampled (the directions of all `diffuse` lanes by a SIMD
@@ -83,7 +88,8 @@ use super::path::PathTracer;
 use crate::bsdf::{BsdfContext, Lobe};
 use super::kernels::{self, AreaChunk, DiffuseChunk, LANES};
 use crate::bsdf::Bsdf;
-use crate::emitter::{Emitter, EmitterSample, ShadingPoint};
+use crate::emitter::{constant, Emitter, EmitterSample, ShadingPoint};
+use crate::math::sampling::square_to_uniform_sphere;
 use crate::geometry::ShapeGeometry;
 use crate::geometry::mesh::Mesh;
 use crate::film::Sink;
@@ -170,9 +176,12 @@ pub struct Queues<S: Spectrum> {
     /// Stream buffers: rays and hits of the live paths in `live` order.
     rays: Vec<Ray>,
     hits: Vec<Option<Hit>>,
-    /// Shadow queue: path, emitter sample, ray, answer.
+    /// Shadow queue: path, emitter sample, its BSDF value and MIS weight
+    /// (known before the ray is traced: samples the BSDF does not reflect
+    /// get none), ray, answer.
     shadow_path: Vec<u32>,
     shadow_sample: Vec<EmitterSample<S>>,
+    shadow_term: Vec<(S, f32)>,
     shadow_ray: Vec<Ray>,
     shadow_blocked: Vec<bool>,
     /// Area-light samples for the SIMD kernel: chunks of lanes, and per
@@ -183,6 +192,14 @@ pub struct Queues<S: Spectrum> {
     /// [`kernels::diffuse_light_contributions`] with a contribution: their
     /// shadow rays follow the others in `shadow_ray`.
     lit_lane: Vec<u32>,
+    /// Samples of a `constant` environment at `diffuse` BSDFs, for
+    /// [`kernels::environment_light_rays`] and
+    /// [`kernels::diffuse_light_contributions`]: chunks, each lane's path,
+    /// and the lanes with a contribution (their shadow rays come last in
+    /// `shadow_ray`).
+    env: Vec<AreaChunk>,
+    env_path: Vec<u32>,
+    env_lit: Vec<u32>,
     /// Diffuse lanes for the BSDF-sampling kernel, and their paths.
     diffuse: Vec<DiffuseChunk>,
     diffuse_lane: Vec<u32>,
@@ -260,11 +277,15 @@ impl<S: Spectrum> Default for Queues<S> {
             hits: Vec::with_capacity(BATCH),
             shadow_path: Vec::with_capacity(BATCH),
             shadow_sample: Vec::with_capacity(BATCH),
+            shadow_term: Vec::with_capacity(BATCH),
             shadow_ray: Vec::with_capacity(BATCH),
             shadow_blocked: Vec::with_capacity(BATCH),
             area: Vec::new(),
             area_meta: Vec::with_capacity(BATCH),
             lit_lane: Vec::with_capacity(BATCH),
+            env: Vec::new(),
+            env_path: Vec::with_capacity(BATCH),
+            env_lit: Vec::with_capacity(BATCH),
             diffuse: Vec::new(),
             diffuse_lane: Vec::with_capacity(BATCH),
             diffuse_weight: Vec::with_capacity(BATCH),
@@ -442,8 +463,10 @@ fn shade_hits<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Q
 fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     q.shadow_path.clear();
     q.shadow_sample.clear();
+    q.shadow_term.clear();
     q.shadow_ray.clear();
     q.area_meta.clear();
+    q.env_path.clear();
     let key = [scene.emitters.as_ptr() as usize, scene.emitters.len(), scene.shapes.as_ptr() as usize, scene.shapes.len()];
     if q.tables_of != key {
         q.kernel_lights.clear();
@@ -461,8 +484,10 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     // emitter sample's weight, not the contribution).
     let shade_diffuse = !scene.pass_through && S::from_channels4([0.0; 4]).is_some();
     // Pass 1: the emitter's choice per path; area lights on meshes go to
-    // the SIMD kernel, the others are sampled here.
-    for &i in &q.live {
+    // the SIMD kernel, `constant` ones at `diffuse` BSDFs to the
+    // environment's kernels, the others are sampled here.
+    let live = std::mem::take(&mut q.live);
+    for &i in &live {
         let i = i as usize;
         let si = &q.si[i];
         if S::hero_wavelength(&q.wl[i]).is_some() && scene.bsdf(si).disperses() {
@@ -510,13 +535,18 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
                     }
                 }
                 q.area_meta.push(AreaLane { path: i as u32, pmf, emitter: index as u32, shade });
-            } else if let Some((es, ray)) = scene.sample_emitter_ray_from::<S>(si, index, pmf, ux, u.y, &q.wl[i]) {
+            } else if shade_diffuse && environment_lane(scene, q, i, index, pmf, Vec2::new(ux, u.y)) {
+                // In the environment kernels' chunks.
+            } else if let Some((es, ray)) = scene.sample_emitter_ray_from::<S>(&q.si[i], index, pmf, ux, u.y, &q.wl[i]) {
+                let Some(term) = bsdf_term(scene, &q.si[i], &es, &q.wl[i]) else { continue };
                 q.shadow_path.push(i as u32);
                 q.shadow_sample.push(es);
+                q.shadow_term.push(term);
                 q.shadow_ray.push(ray);
             }
         }
     }
+    q.live = live;
     // Pass 2: the kernels; for the lanes they did not shade, the radiance
     // and the selection divided in as `AreaLight::sample_direct` and
     // `Scene::sample_emitter_ray` do, and their shadow rays join the scalar
@@ -548,14 +578,33 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
             let radiance: S = light.radiance.eval(&q.wl[i as usize]);
             let weight = radiance / pdf;
             let es = EmitterSample { d: v(&ch.d), dist: ch.dist[l], p: Some(v(&ch.target)), n: v(&ch.tri_n), weight: weight / pmf, pdf: pdf * pmf, delta: false };
+            let Some(term) = bsdf_term(scene, &q.si[i as usize], &es, &q.wl[i as usize]) else { continue };
             q.shadow_path.push(i);
             q.shadow_sample.push(es);
+            q.shadow_term.push(term);
             q.shadow_ray.push(Ray { o: v(&ch.ray_o), d: v(&ch.ray_d), tmax: ch.tmax[l] });
         }
         for &k in &q.lit_lane {
             let (ch, l) = (&q.area[k as usize / LANES], k as usize % LANES);
             let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
             q.shadow_ray.push(Ray { o: v(&ch.ray_o), d: v(&ch.ray_d), tmax: ch.tmax[l] });
+        }
+    }
+    // The environment's lanes: their rays, contributions, and the shadow
+    // rays of those with one.
+    q.env_lit.clear();
+    if !q.env_path.is_empty() {
+        let used = q.env_path.len().div_ceil(LANES);
+        let level = scene.accel.simd_level();
+        kernels::environment_light_rays(level, &mut q.env[..used]);
+        kernels::diffuse_light_contributions(level, &mut q.env[..used]);
+        for k in 0..q.env_path.len() {
+            let (ch, l) = (&q.env[k / LANES], k % LANES);
+            if ch.lit[l] {
+                q.env_lit.push(k as u32);
+                let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
+                q.shadow_ray.push(Ray { o: v(&ch.ray_o), d: v(&ch.ray_d), tmax: ch.tmax[l] });
+            }
         }
     }
     if q.shadow_ray.is_empty() {
@@ -568,13 +617,25 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     }
     // The shaded lanes' contributions where the light is seen.
     let scalar = q.shadow_path.len();
-    for (&k, &blocked) in q.lit_lane.iter().zip(&q.shadow_blocked[scalar..]) {
+    let area_end = scalar + q.lit_lane.len();
+    for (&k, &blocked) in q.lit_lane.iter().zip(&q.shadow_blocked[scalar..area_end]) {
         if blocked {
             continue;
         }
         let (k, l) = (k as usize, k as usize % LANES);
         let ch = &q.area[k / LANES];
         let i = q.area_meta[k].path as usize;
+        if let Some(c) = S::from_channels4([ch.contrib[0][l], ch.contrib[1][l], ch.contrib[2][l], ch.contrib[3][l]]) {
+            q.result[i] += c;
+        }
+    }
+    for (&k, &blocked) in q.env_lit.iter().zip(&q.shadow_blocked[area_end..]) {
+        if blocked {
+            continue;
+        }
+        let (k, l) = (k as usize, k as usize % LANES);
+        let ch = &q.env[k / LANES];
+        let i = q.env_path[k] as usize;
         if let Some(c) = S::from_channels4([ch.contrib[0][l], ch.contrib[1][l], ch.contrib[2][l], ch.contrib[3][l]]) {
             q.result[i] += c;
         }
@@ -593,16 +654,60 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
         } else if q.shadow_blocked[k] {
             continue;
         }
-        let si = &q.si[i];
-        let bsdf = scene.bsdf(si);
-        let wo = si.to_local(es.d);
-        let (f, pdf): (S, f32) = bsdf.eval_pdf(&BsdfContext::RADIANCE, si, si.wi, wo, &q.wl[i]);
-        if f.is_zero() {
-            continue;
-        }
-        let w = if es.delta { 1.0 } else { mis_power(es.pdf, pdf) };
+        let (f, w) = q.shadow_term[k];
         q.result[i] += q.throughput[i] * f * es.weight * w;
     }
+}
+
+/// The BSDF's value at `si` towards the emitter sample `es` and the
+/// sample's MIS weight against BSDF sampling (as `path::next_event`);
+/// `None` where the BSDF reflects nothing that way (no shadow ray then).
+#[inline(always)]
+fn bsdf_term<S: Spectrum>(scene: &Scene, si: &SurfaceInteraction, es: &EmitterSample<S>, wl: &S::Wavelengths) -> Option<(S, f32)> {
+    let wo = si.to_local(es.d);
+    let (f, pdf): (S, f32) = scene.bsdf(si).eval_pdf(&BsdfContext::RADIANCE, si, si.wi, wo, wl);
+    if f.is_zero() {
+        return None;
+    }
+    Some((f, if es.delta { 1.0 } else { mis_power(es.pdf, pdf) }))
+}
+
+/// Puts path `i`'s sample of emitter `index` (picked with probability
+/// `pmf`; the 2-D sample `u`) into the environment kernels' chunks if
+/// they compute it exactly as `Scene::sample_emitter_ray_from` and the
+/// shading after it would: a `constant` emitter at a `diffuse` BSDF. Its
+/// direction is drawn here (`ConstantLight::sample_direction`'s
+/// `square_to_uniform_sphere`: a libm sine and cosine, lane by lane).
+/// Whether it did.
+#[inline(always)]
+fn environment_lane<S: Spectrum>(scene: &Scene, q: &mut Queues<S>, i: usize, index: usize, pmf: f32, u: Vec2) -> bool {
+    let si = &q.si[i];
+    let (Bsdf::Diffuse(b), Emitter::Constant(light)) = (scene.bsdf(si), &scene.emitters[index]) else { return false };
+    let wl = &q.wl[i];
+    let refl = b.reflectance.eval_spectrum::<S>(si, wl).depolarize();
+    let radiance: S = light.radiance.eval(wl);
+    let (Some(t), Some(r), Some(e)) = (q.throughput[i].to_channels4(), refl.to_channels4(), radiance.to_channels4()) else { return false };
+    let d = square_to_uniform_sphere(u);
+    let k = q.env_path.len();
+    if k % LANES == 0 && k / LANES == q.env.len() {
+        q.env.push(AreaChunk::default());
+    }
+    let (ch, l) = (&mut q.env[k / LANES], k % LANES);
+    for (dst, src) in [(&mut ch.p, si.p), (&mut ch.n, si.n), (&mut ch.d, d), (&mut ch.fn_, si.frame.n)] {
+        dst[0][l] = src.x;
+        dst[1][l] = src.y;
+        dst[2][l] = src.z;
+    }
+    for c in 0..4 {
+        ch.throughput[c][l] = t[c];
+        ch.reflectance[c][l] = r[c];
+        ch.radiance[c][l] = e[c];
+    }
+    ch.pdf[l] = constant::PDF;
+    ch.wi_z[l] = si.wi.z;
+    ch.pmf[l] = pmf;
+    q.env_path.push(i as u32);
+    true
 }
 
 /// The per-path columns BSDF sampling reads and writes, each cut to the
