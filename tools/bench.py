@@ -383,10 +383,23 @@ def mesh_mitsuba_once(args, xml, py):
     return json.loads(out.strip().splitlines()[-1])
 
 
+def triangle_count(text):
+    """A --mesh size: an integer, or with a k/M suffix (2k = 2000, 1.5M = 1 500 000)."""
+    t = text.strip()
+    scale = {"k": 1e3, "K": 1e3, "m": 1e6, "M": 1e6}.get(t[-1:], 1)
+    try:
+        n = int(float(t[:-1] if scale != 1 else t) * scale)
+    except ValueError:
+        sys.exit(f"--mesh: '{text}' is not a triangle count (e.g. 2000, 2k, 1M)")
+    if n < 2:
+        sys.exit(f"--mesh: '{text}' is too few triangles (at least 2)")
+    return n
+
+
 def bench_mesh(args):
     """--mesh: load + build seconds, render seconds, peak RSS and bytes per triangle
     (RSS growth over a small mesh) for Snell and Mitsuba, medians of --runs."""
-    sizes = [int(float(s.rstrip("Mm")) * 1e6) if s[-1] in "Mm" else int(s) for s in args.mesh.split(",")]
+    sizes = [triangle_count(s) for s in args.mesh.split(",")]
     formats = [f.strip() for f in args.mesh_formats.split(",")]
     py = None
     if args.mitsuba_python:
@@ -720,7 +733,7 @@ def main():
     ap.add_argument("--mode", default="rgb", help=argparse.SUPPRESS)
     ap.add_argument("--mitsuba-worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--mesh", metavar="SIZES",
-                    help="mesh benchmark instead of scenes: triangle counts, e.g. 1M,4M")
+                    help="mesh benchmark instead of scenes: triangle counts, e.g. 2k,1M,4M")
     ap.add_argument("--mesh-formats", default="ply,obj", help="mesh files to load: ply, obj or both")
     ap.add_argument("--mesh-res", type=int, default=512)
     ap.add_argument("--mesh-spp", type=int, default=16)
