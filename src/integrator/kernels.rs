@@ -342,13 +342,9 @@ fn diffuse_body(chunks: &mut [DiffuseChunk]) {
             for j in 0..3 {
                 d[j] = ch.s[j][k] * dx + ch.t[j][k] * dy + ch.fn_[j][k] * z;
             }
-            let n = [ch.n[0][k], ch.n[1][k], ch.n[2][k]];
-            let p = [ch.p[0][k], ch.p[1][k], ch.p[2][k]];
-            let mag = (1.0 + max3(p[0].abs(), p[1].abs(), p[2].abs())) * RAY_EPSILON;
-            let front = n[0] * d[0] + n[1] * d[1] + n[2] * d[2] >= 0.0;
+            let o = spawn_origin([ch.p[0][k], ch.p[1][k], ch.p[2][k]], [ch.n[0][k], ch.n[1][k], ch.n[2][k]], d);
             for j in 0..3 {
-                let off = n[j] * mag;
-                ch.o[j][k] = if front { p[j] + off } else { p[j] - off };
+                ch.o[j][k] = o[j];
                 ch.d[j][k] = d[j];
             }
             ch.pdf[k] = pdf;
