@@ -335,13 +335,13 @@ fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u3
     let offset = Vec2::new(ox as f32, oy as f32);
     for &(x, index) in jobs {
         let mut sampler = Sampler::start(&scene.sampler, x + ox, y + oy, index);
-        // A spectrum with no wavelengths (RGB: a zero-sized type) cannot use
-        // the draw: skip it (the sample's later draws stay the same).
-        let wl = if std::mem::size_of::<S::Wavelengths>() == 0 {
+        // RGB paths carry no wavelengths and cannot use the draw: skip it
+        // (the sample's later draws stay the same).
+        let wl = if S::SPECTRAL {
+            S::sample_wavelengths(sampler.next_1d())
+        } else {
             sampler.skip_1d();
             S::sample_wavelengths(0.0)
-        } else {
-            S::sample_wavelengths(sampler.next_1d())
         };
         let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
         let ray = scene.camera.sample_ray((pos + offset) * cam.inv_size, &mut sampler);
@@ -819,9 +819,6 @@ fn sample_bsdfs<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut
     q.next.clear();
     q.diffuse_lane.clear();
     q.diffuse_weight.clear();
-    // A constant reflectance is the same weight for every lane where the
-    // spectrum has no wavelengths to depend on (RGB).
-    let no_wavelengths = std::mem::size_of::<S::Wavelengths>() == 0;
     let live = std::mem::take(&mut q.live);
     let n = q.throughput.len();
     let mut c = Columns::<S> {
@@ -843,10 +840,12 @@ fn sample_bsdfs<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut
         start = end;
         let Some(&first) = run.first() else { continue };
         // The run's BSDF where no shape passes rays through (else each
-        // lane's, `Scene::bsdf` of its shape), and its weight if constant.
+        // lane's, `Scene::bsdf` of its shape), and its weight if constant:
+        // a constant reflectance is the same for every lane in RGB, where
+        // there are no wavelengths for it to depend on.
         let run_bsdf = if scene.pass_through { None } else { scene.bsdfs.get(b) };
         let run_weight: Option<S> = match run_bsdf {
-            Some(Bsdf::Diffuse(d)) if no_wavelengths && matches!(d.reflectance, Texture::Constant(..)) => {
+            Some(Bsdf::Diffuse(d)) if !S::SPECTRAL && matches!(d.reflectance, Texture::Constant(..)) => {
                 let first = first as usize;
                 Some(d.reflectance.eval_spectrum::<S>(&c.si[first], &c.wl[first]).depolarize())
             }

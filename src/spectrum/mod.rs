@@ -119,6 +119,10 @@ pub trait Spectrum:
     }
     /// Whether this type carries polarisation.
     const POLARIZED: bool = false;
+    /// Whether paths of this type carry sampled wavelengths (the spectral
+    /// modes); in RGB modes `Wavelengths` is empty and the wavelength draw
+    /// is unused.
+    const SPECTRAL: bool = std::mem::size_of::<Self::Wavelengths>() != 0;
     /// The values as up to four plain channels (RGB: the fourth is 0), for
     /// the SIMD kernels that keep one channel of many paths per register
     /// (`integrator::kernels`); `None` for types that are not a few plain

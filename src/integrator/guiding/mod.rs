@@ -107,7 +107,7 @@ impl Guiding {
     /// the polarized modes (not guided).
     #[inline]
     pub fn slot<S: crate::spectrum::Spectrum>() -> Option<usize> {
-        if S::POLARIZED { None } else { Some((std::mem::size_of::<S::Wavelengths>() != 0) as usize) }
+        if S::POLARIZED { None } else { Some(S::SPECTRAL as usize) }
     }
 
     /// The trained guide for the spectrum type, if training has run.
