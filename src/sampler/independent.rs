@@ -23,8 +23,10 @@ pub(crate) struct Independent {
 }
 
 impl Independent {
-    pub fn start(seed: u64, x: u32, y: u32, index: u32) -> Independent {
-        Independent { rng: Pcg32::new(super::pixel_seed(seed, x, y), mix64(index as u64 ^ 0x1dea_0000)) }
+    /// Sample `index` of the pixel whose sequence seed is `pixel`
+    /// (`super::pixel_seed` of the seed and the pixel).
+    pub fn start(pixel: u64, index: u32) -> Independent {
+        Independent { rng: Pcg32::new(pixel, mix64(index as u64 ^ 0x1dea_0000)) }
     }
 
     #[inline]

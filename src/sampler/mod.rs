@@ -187,36 +187,50 @@ enum Method {
     ZSobol(zsobol::ZSobol),
 }
 
-/// Where a sample is: the per-pixel sequence seed and the sample's index.
-/// Samplers whose pattern covers `count` samples treat index `count + i` as
-/// sample `i` of a fresh, independently randomized pattern (`block` 1).
+/// The samples of one pixel: what [`Sampler::start`] computes that is the
+/// same for all of them (the pixel's sequence seed, the pattern's size),
+/// made once, so that a renderer taking several samples of a pixel in a
+/// row starts each with [`PixelSamples::start`] alone. The draws are those
+/// of `Sampler::start` (which goes through here).
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct SampleId {
-    /// Hash of (seed, pixel, block).
-    pub pixel_seed: u64,
-    /// Index within the pattern, < count.
-    pub index: u32,
-    pub count: u32,
+pub struct PixelSamples {
+    spec: SamplerSpec,
+    x: u32,
+    y: u32,
+    /// [`pixel_seed`] of (seed, x, y).
+    pixel: u64,
+    /// The pattern's sample count ([`SamplerKind::pattern_count`]).
+    count: u32,
 }
 
-impl SampleId {
-    fn new(spec: &SamplerSpec, count: u32, x: u32, y: u32, index: u32) -> SampleId {
-        let count = count.max(1);
-        let block = index / count;
-        SampleId { pixel_seed: hash(pixel_seed(spec.seed, x, y), block as u64), index: index % count, count }
+impl PixelSamples {
+    pub fn new(spec: &SamplerSpec, x: u32, y: u32) -> PixelSamples {
+        PixelSamples { spec: *spec, x, y, pixel: pixel_seed(spec.seed, x, y), count: spec.kind.pattern_count(spec.sample_count) }
     }
-}
 
-impl Sampler {
-    /// The sampler of sample `index` of pixel (`x`, `y`) (pixel coordinates
-    /// in the full film, so a crop renders the same samples as the full
-    /// render there). Light tracing addresses its paths the same way, with
-    /// its own pixel numbering.
-    pub fn start(spec: &SamplerSpec, x: u32, y: u32, index: u32) -> Sampler {
-        let count = spec.kind.pattern_count(spec.sample_count);
-        let id = || SampleId::new(spec, count, x, y, index);
+    /// The pixel this is for.
+    #[inline]
+    pub fn pixel(&self) -> (u32, u32) {
+        (self.x, self.y)
+    }
+
+    /// The sampler of sample `index` of this pixel.
+    #[inline(always)]
+    pub fn start(&self, index: u32) -> Sampler {
+        // The default sampler inline (a hash and a PCG32 seeding), the
+        // others out of line, as the draws are.
+        if let SamplerKind::Independent = self.spec.kind {
+            return Sampler { method: Method::Independent(independent::Independent::start(self.pixel, index)) };
+        }
+        self.start_patterned(index)
+    }
+
+    #[inline(never)]
+    fn start_patterned(&self, index: u32) -> Sampler {
+        let (spec, count, x, y) = (&self.spec, self.count, self.x, self.y);
+        let id = || SampleId::new(self.pixel, count, index);
         let method = match spec.kind {
-            SamplerKind::Independent => Method::Independent(independent::Independent::start(spec.seed, x, y, index)),
+            SamplerKind::Independent => Method::Independent(independent::Independent::start(self.pixel, index)),
             SamplerKind::Stratified { jitter, dimension } => Method::Stratified(stratified::Stratified::start(id(), jitter, dimension)),
             SamplerKind::Multijitter { jitter } => Method::Multijitter(multijitter::Multijitter::start(id(), jitter)),
             SamplerKind::Orthogonal { jitter, strength } => Method::Orthogonal(orthogonal::Orthogonal::start(id(), jitter, strength)),
@@ -231,7 +245,38 @@ impl Sampler {
         };
         Sampler { method }
     }
+}
 
+/// Where a sample is: the per-pixel sequence seed and the sample's index.
+/// Samplers whose pattern covers `count` samples treat index `count + i` as
+/// sample `i` of a fresh, independently randomized pattern (`block` 1).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SampleId {
+    /// Hash of (seed, pixel, block).
+    pub pixel_seed: u64,
+    /// Index within the pattern, < count.
+    pub index: u32,
+    pub count: u32,
+}
+
+impl SampleId {
+    /// Sample `index` of the pixel whose sequence seed is `pixel`
+    /// ([`pixel_seed`]).
+    fn new(pixel: u64, count: u32, index: u32) -> SampleId {
+        let count = count.max(1);
+        let block = index / count;
+        SampleId { pixel_seed: hash(pixel, block as u64), index: index % count, count }
+    }
+}
+
+impl Sampler {
+    /// The sampler of sample `index` of pixel (`x`, `y`) (pixel coordinates
+    /// in the full film, so a crop renders the same samples as the full
+    /// render there). Light tracing addresses its paths the same way, with
+    /// its own pixel numbering.
+    pub fn start(spec: &SamplerSpec, x: u32, y: u32, index: u32) -> Sampler {
+        PixelSamples::new(spec, x, y).start(index)
+    }
     #[inline(always)]
     pub fn next_1d(&mut self) -> f32 {
         // The default sampler inline (a few integer instructions); the

@@ -213,7 +213,7 @@ mod tests {
         // as owen_scramble(sobol0/1(i)) of the draw's index and seeds.
         let spec = spec(SamplerKind::Sobol, 64, 4);
         for index in [0u32, 1, 17, 63, 64, 200] {
-            let id = SampleId::new(&spec, 64, 5, 6, index);
+            let id = SampleId::new(super::super::pixel_seed(spec.seed, 5, 6), 64, index);
             let (mut fast, mut slow) = (Sobol::start(id), Sobol::start(id));
             for d in 0..40 {
                 let (i, a, b) = slow.draw();
