@@ -96,7 +96,9 @@ use crate::film::Sink;
 use crate::geometry::accel::Hit;
 use crate::geometry::{Ray, SurfaceInteraction};
 use crate::math::mis_power;
-use crate::sampler::Sampler;
+use crate::sampler::{PixelSamples, Sampler};
+use crate::sensor::Camera;
+use crate::sensor::perspective::{RayChunk, LANES as CAMERA_LANES};
 use crate::scene::Scene;
 use crate::spectrum::{Rgb, Spectrum};
 use crate::texture::Texture;
@@ -313,12 +315,18 @@ pub fn render_row<S: Spectrum>(
     sink: &mut Sink,
 ) -> u64 {
     let mut bad = 0;
-    let mut jobs = xs.flat_map(|x| samples.clone().map(move |i| (x, i))).peekable();
     let size = batch_size();
     let mut batch = Vec::with_capacity(size);
-    while jobs.peek().is_some() {
-        batch.clear();
-        batch.extend(jobs.by_ref().take(size));
+    for x in xs {
+        for i in samples.clone() {
+            batch.push((x, i));
+            if batch.len() == size {
+                bad += render_batch::<S>(scene, pt, y, &batch, cam, q, sink);
+                batch.clear();
+            }
+        }
+    }
+    if !batch.is_empty() {
         bad += render_batch::<S>(scene, pt, y, &batch, cam, q, sink);
     }
     bad
@@ -333,8 +341,22 @@ fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u3
     q.ray.clear();
     let [ox, oy] = cam.crop_offset;
     let offset = Vec2::new(ox as f32, oy as f32);
+    // A pinhole camera draws nothing: its rays are made after the draws,
+    // a chunk of lanes at a time.
+    let pinhole = match &scene.camera {
+        Camera::Perspective(p) => Some(p),
+        _ => None,
+    };
+    let level = scene.accel.simd_level();
+    let mut chunk = RayChunk::default();
+    let mut lanes = 0;
+    // The samples of a pixel come in a row: what their samplers share is made once.
+    let mut pixel = PixelSamples::new(&scene.sampler, ox, y + oy);
     for &(x, index) in jobs {
-        let mut sampler = Sampler::start(&scene.sampler, x + ox, y + oy, index);
+        if pixel.pixel().0 != x + ox {
+            pixel = PixelSamples::new(&scene.sampler, x + ox, y + oy);
+        }
+        let mut sampler = pixel.start(index);
         // RGB paths carry no wavelengths and cannot use the draw: skip it
         // (the sample's later draws stay the same).
         let wl = if S::SPECTRAL {
@@ -344,11 +366,27 @@ fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u3
             S::sample_wavelengths(0.0)
         };
         let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
-        let ray = scene.camera.sample_ray((pos + offset) * cam.inv_size, &mut sampler);
+        let film = (pos + offset) * cam.inv_size;
+        match pinhole {
+            Some(camera) => {
+                chunk.film[0][lanes] = film.x;
+                chunk.film[1][lanes] = film.y;
+                lanes += 1;
+                if lanes == CAMERA_LANES {
+                    camera.generate_rays(level, &mut chunk);
+                    q.ray.extend((0..lanes).map(|k| chunk.ray(k)));
+                    lanes = 0;
+                }
+            }
+            None => q.ray.push(scene.camera.sample_ray(film, &mut sampler)),
+        }
         q.sampler.push(sampler);
         q.wl.push(wl);
         q.pos.push(pos);
-        q.ray.push(ray);
+    }
+    if let (Some(camera), true) = (pinhole, lanes > 0) {
+        camera.generate_rays(level, &mut chunk);
+        q.ray.extend((0..lanes).map(|k| chunk.ray(k)));
     }
     let n = jobs.len();
     q.throughput.clear();
@@ -405,11 +443,19 @@ fn trace_extension<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &
         }
         return;
     }
-    q.rays.clear();
-    q.rays.extend(q.live.iter().map(|&i| q.ray[i as usize]));
-    q.hits.clear();
-    q.hits.resize(q.rays.len(), None);
-    scene.accel.intersect_stream(&q.rays, &mut q.hits);
+    let m = q.live.len();
+    // Every hit is written by the stream: the buffer is only grown.
+    if q.hits.len() < m {
+        q.hits.resize(m, None);
+    }
+    if depth == 0 {
+        // All paths, in order (`render_batch`): their rays as they are.
+        scene.accel.intersect_stream(&q.ray[..m], &mut q.hits[..m]);
+    } else {
+        q.rays.clear();
+        q.rays.extend(q.live.iter().map(|&i| q.ray[i as usize]));
+        scene.accel.intersect_stream(&q.rays, &mut q.hits[..m]);
+    }
     for (k, &i) in q.live.iter().enumerate() {
         let i = i as usize;
         q.hit[i] = match &q.hits[k] {
@@ -432,11 +478,13 @@ fn shade_hits<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Q
     q.next.clear();
     for &i in &q.live {
         let i = i as usize;
-        let pv = q.prev[i];
-        let prev = ShadingPoint { p: pv.p, n: pv.n };
+        // The previous vertex is read only where light was met (most
+        // paths meet none).
         if !q.hit[i] {
             if visible {
                 if let Some(env) = scene.environment_radiance::<S>(q.ray[i].d, &q.wl[i]) {
+                    let pv = q.prev[i];
+                    let prev = ShadingPoint { p: pv.p, n: pv.n };
                     q.result[i] += q.throughput[i] * env * super::path::escaped_weight(scene, &prev, pv.pdf, pv.delta, q.ray[i].d);
                 }
             }
@@ -445,6 +493,8 @@ fn shade_hits<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Q
         if visible {
             let si = &q.si[i];
             if let Some(le) = scene.emitted::<S>(si, &q.wl[i]) {
+                let pv = q.prev[i];
+                let prev = ShadingPoint { p: pv.p, n: pv.n };
                 q.result[i] += q.throughput[i] * le * super::path::hit_weight(scene, &prev, pv.pdf, pv.delta, si);
             }
         }
