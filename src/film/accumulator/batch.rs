@@ -134,7 +134,7 @@ unsafe fn add_samples_body<const AVX512: bool>(sink: &mut Sink, filter: &Filter,
             let m = _mm256_max_pd(abs_t, _mm256_permute2f128_pd::<1>(abs_t, abs_t));
             let m = _mm_max_sd(_mm256_castpd256_pd128(m), _mm_unpackhi_pd(_mm256_castpd256_pd128(m), _mm256_castpd256_pd128(m)));
             // Below 2^36 (checked above): the conversion truncates as `as`.
-            let peak = _mm_cvtsd_f64(m).to_int_unchecked::<u64>();
+            let peak = _mm_cvtsd_f64(m).to_int_unchecked::<i64>() as u64;
             let bound = peak << WEIGHT_BITS;
             if sink.load > i64::MAX as u64 - bound {
                 sink.flush_narrow();
@@ -180,13 +180,25 @@ unsafe fn add_samples_body<const AVX512: bool>(sink: &mut Sink, filter: &Filter,
                 let mut ws = [0i32; 16];
                 _mm256_storeu_si256(ws.as_mut_ptr() as *mut __m256i, w01);
                 _mm256_storeu_si256(ws.as_mut_ptr().add(8) as *mut __m256i, w23);
-                for j in 0..ny {
-                    for i in 0..nx {
-                        let wb = _mm256_set1_epi32(ws[4 * j + i]);
-                        let term = _mm256_add_epi64(_mm256_mul_epi32(wb, v), _mm256_slli_epi64::<32>(_mm256_mul_epi32(wb, hi)));
-                        // SAFETY: pixel i < nx of row j < ny, in `cells`.
-                        let p = cells.add(j * width + i) as *mut __m256i;
-                        _mm256_storeu_si256(p, _mm256_add_epi64(_mm256_loadu_si256(p), term));
+                // SAFETY: pixel i < nx of row j < ny, in `cells`.
+                let add = |j: usize, i: usize| {
+                    let wb = _mm256_set1_epi32(ws[4 * j + i]);
+                    let term = _mm256_add_epi64(_mm256_mul_epi32(wb, v), _mm256_slli_epi64::<32>(_mm256_mul_epi32(wb, hi)));
+                    let p = cells.add(j * width + i) as *mut __m256i;
+                    _mm256_storeu_si256(p, _mm256_add_epi64(_mm256_loadu_si256(p), term));
+                };
+                if nx == 4 {
+                    // The common footprint, its rows unrolled.
+                    for j in 0..ny {
+                        for i in 0..4 {
+                            add(j, i);
+                        }
+                    }
+                } else {
+                    for j in 0..ny {
+                        for i in 0..nx {
+                            add(j, i);
+                        }
                     }
                 }
             }
