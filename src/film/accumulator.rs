@@ -1240,10 +1240,10 @@ mod tests {
                 }
             }
             reference.flush_narrow();
-            assert!(reference.data.iter().filter(|&&v| v != 0).count() > 300, "{filter:?}");
+            assert!(reference.data.iter().filter(|&&v| v != 0).count() > 300, "{:?}", filter.kind);
             for s in sinks.iter_mut() {
                 s.flush_narrow();
-                assert!(s.data == reference.data, "{filter:?} at {:?}", s.level);
+                assert!(s.data == reference.data, "{:?} at {:?}", filter.kind, s.level);
             }
         }
     }
