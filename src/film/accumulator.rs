@@ -37,11 +37,14 @@
 //! way, and nearly as cheap as the float sums they replace.
 
 use super::{Channel, Filter, Image, Layer, PixelFormat};
+use crate::geometry::accel::SimdLevel;
 use crate::math::rounding::{ceil_i32, floor_i32};
 use crate::spectrum::Rgb;
 use glam::Vec2;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
+
+mod batch;
 
 /// Fractional bits of the fixed-point accumulators: those of a value plus
 /// those of a weight.
@@ -153,9 +156,9 @@ pub struct Sink {
     /// at most one term to each sum). While it stays within `i64::MAX` no
     /// narrow sum can overflow, so adding to them needs no checks.
     load: u64,
-    /// Whether the narrow sums are added with AVX2 (the CPU has it and
-    /// `SNELL_SIMD` allows it): the same integers either way.
-    avx2: bool,
+    /// The instruction set the narrow sums are added with (the CPU's best,
+    /// or less as `SNELL_SIMD` says): the same integers at every level.
+    level: SimdLevel,
 }
 
 /// Calls `add` with each pixel's sums of a narrow camera sample's footprint
@@ -260,7 +263,7 @@ impl Sink {
             data: vec![],
             narrow: if layout.camera { vec![[0; 4]; width * height] } else { vec![] },
             load: 0,
-            avx2: crate::geometry::accel::SimdLevel::current() >= crate::geometry::accel::SimdLevel::Avx2,
+            level: SimdLevel::current(),
         }
     }
 
@@ -325,8 +328,8 @@ impl Sink {
             let first = (y0 - self.y0) as usize * self.width + (x0 - self.x0) as usize;
             let rgb = [v[0], v[1], v[2]];
             #[cfg(target_arch = "x86_64")]
-            if self.avx2 {
-                // SAFETY: `avx2` is set only where the CPU has AVX2.
+            if self.level >= SimdLevel::Avx2 {
+                // SAFETY: the level is one the CPU runs.
                 unsafe { add_narrow_rows_avx2(&mut self.narrow, self.width, first, &wx[..nx], &wy[..ny], rgb) };
             } else {
                 add_narrow_rows(&mut self.narrow, self.width, first, &wx[..nx], &wy[..ny], rgb);
@@ -1107,9 +1110,9 @@ mod tests {
         assert_eq!(state.data[j + 3], 1000 * term(1 << WEIGHT_BITS, 1 << VALUE_BITS));
     }
 
-    /// The narrow sums, added by AVX2 (where the CPU has it) or by the
-    /// plain code, and the wide sums alone hold the same integers, for
-    /// footprints of 1 to 7 pixels a side.
+    /// The narrow sums, added at every level the CPU runs (AVX-512 and AVX2
+    /// where it has them, the plain code), and the wide sums alone hold the
+    /// same integers, for footprints of 1 to 7 pixels a side.
     #[test]
     fn narrow_rows_avx2_plain_and_wide_add_the_same_integers() {
         let layout = Layout { camera: true, splats: false, stokes: false, extra: vec![] };
@@ -1128,12 +1131,18 @@ mod tests {
             (seed >> 40) as f32 / (1u64 << 24) as f32
         };
         for filter in &filters {
-            let mut sinks = [true, false, false].map(|avx2| {
-                let mut s = Sink::new(&layout, -4, -4, 20, 20);
-                s.avx2 &= avx2;
-                s
-            });
-            sinks[2].narrow.clear();
+            let mut sinks: Vec<Sink> = SimdLevel::ALL
+                .into_iter()
+                .filter(|l| l.supported())
+                .map(|level| {
+                    let mut s = Sink::new(&layout, -4, -4, 20, 20);
+                    s.level = level;
+                    s
+                })
+                .collect();
+            let mut wide = Sink::new(&layout, -4, -4, 20, 20);
+            wide.narrow.clear();
+            sinks.push(wide);
             for _ in 0..3000 {
                 let pos = Vec2::new(12.0 * next(), 12.0 * next());
                 let rgb = Rgb::new(15.0 * next() - 3.0, 2.0 * next(), 15.9 * next());
@@ -1141,11 +1150,101 @@ mod tests {
                     s.add_sample(filter, pos, rgb, None, &[]);
                 }
             }
-            for s in sinks.iter_mut().take(2) {
-                s.flush_narrow();
+            for s in sinks.iter_mut() {
+                if !s.narrow.is_empty() {
+                    s.flush_narrow();
+                }
             }
             assert!(sinks[0].data.iter().any(|&v| v != 0), "{filter:?}");
-            assert!(sinks[0].data == sinks[1].data && sinks[1].data == sinks[2].data, "{filter:?}");
+            for s in &sinks[1..] {
+                assert!(s.data == sinks[0].data, "{filter:?} at {:?}", s.level);
+            }
+        }
+    }
+
+    /// Batches of samples ([`Sink::add_samples`], at every level the CPU
+    /// runs) leave the same integers as the samples added one by one by the
+    /// plain code: random positions, footprints cut by the sink's edge or
+    /// passing the 4 × 4 pixels of the vector code (a pixel centre exactly
+    /// at the radius), huge and NaN positions, values on either side of
+    /// the narrow limit (16), NaN and infinite ones, for the box, tents,
+    /// Gaussians, Mitchell's and Lanczos' filters.
+    #[test]
+    fn batches_add_the_same_integers_as_single_samples() {
+        let layout = Layout { camera: true, splats: false, stokes: false, extra: vec!["A".into()] };
+        let filters = [
+            Filter::new(FilterKind::Box),
+            Filter::new(FilterKind::Tent { radius: 1.0 }),
+            Filter::new(FilterKind::Tent { radius: 1.5 }),
+            Filter::gaussian(0.5),
+            Filter::gaussian(0.3),
+            Filter::new(FilterKind::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 }),
+            Filter::catmull_rom(),
+            Filter::new(FilterKind::Lanczos { lobes: 2 }),
+        ];
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let below_16 = f32::from_bits(16.0f32.to_bits() - 1);
+        let special = [16.0, -16.0, below_16, -below_16, 15.999, f32::NAN, f32::INFINITY, -f32::INFINITY, 1e30, 0.0, -0.0, 3.0e9];
+        for filter in &filters {
+            let mut reference = Sink::new(&layout, -3, -2, 12, 10);
+            reference.level = SimdLevel::Baseline;
+            let mut sinks: Vec<Sink> = SimdLevel::ALL
+                .into_iter()
+                .filter(|l| l.supported())
+                .map(|level| {
+                    let mut s = Sink::new(&layout, -3, -2, 12, 10);
+                    s.level = level;
+                    s
+                })
+                .collect();
+            let mut batch = Vec::new();
+            for round in 0..400 {
+                batch.clear();
+                for _ in 0..64 {
+                    let u = next();
+                    let mut pos = Vec2::new(16.0 * next() - 5.0, 14.0 * next() - 4.0);
+                    if u < 0.05 {
+                        // A pixel centre exactly at the radius.
+                        pos.x = (pos.x.floor() + 0.5 + filter.radius()).min(1e6);
+                    } else if u < 0.06 {
+                        pos.y = [f32::NAN, 1e12, -1e12, f32::INFINITY][(16.0 * next()) as usize % 4];
+                    }
+                    let value = |next: &mut dyn FnMut() -> f32| {
+                        let k = next();
+                        if k < 0.1 {
+                            special[(special.len() as f32 * next()) as usize % special.len()]
+                        } else if k < 0.5 {
+                            32.0 * next() - 16.0
+                        } else {
+                            next()
+                        }
+                    };
+                    let rgb = Rgb::new(value(&mut next), value(&mut next), value(&mut next));
+                    batch.push((pos, rgb));
+                }
+                for &(pos, rgb) in &batch {
+                    reference.add_sample(filter, pos, rgb, None, &[]);
+                }
+                for s in sinks.iter_mut() {
+                    s.add_samples(filter, batch.iter().copied());
+                }
+                if round == 200 {
+                    // Moves the narrow sums mid-way in one sink only.
+                    sinks[0].flush_narrow();
+                }
+            }
+            reference.flush_narrow();
+            assert!(reference.data.iter().filter(|&&v| v != 0).count() > 300, "{:?}", filter.kind);
+            for s in sinks.iter_mut() {
+                s.flush_narrow();
+                assert!(s.data == reference.data, "{:?} at {:?}", filter.kind, s.level);
+            }
         }
     }
 

@@ -421,14 +421,16 @@ fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u3
     }
 
     let mut bad = 0;
-    for i in 0..n {
-        let mut rgb = q.result[i].to_rgb(&q.wl[i]);
-        if !rgb.is_finite() {
+    let samples = (0..n).map(|i| {
+        let rgb = q.result[i].to_rgb(&q.wl[i]);
+        if rgb.is_finite() {
+            (q.pos[i], rgb)
+        } else {
             bad += 1;
-            rgb = Rgb::BLACK;
+            (q.pos[i], Rgb::BLACK)
         }
-        sink.add_sample(&scene.film.filter, q.pos[i], rgb, None, &[]);
-    }
+    });
+    sink.add_samples(&scene.film.filter, samples);
     bad
 }
 
