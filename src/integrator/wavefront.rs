@@ -106,6 +106,10 @@ use glam::{Vec2, Vec3};
 use std::ops::Range;
 use std::sync::OnceLock;
 
+/// Most triangles of an area light whose corners the next-event stage
+/// copies into a table of its own (48 bytes a triangle, per worker's tile).
+const LIGHT_TABLE_TRIANGLES: usize = 1024;
+
 /// Paths per batch (unless `SNELL_WAVEFRONT_BATCH` says otherwise).
 pub const BATCH: usize = 256;
 
@@ -194,6 +198,8 @@ pub struct Queues<S: Spectrum> {
     /// [`kernels::diffuse_light_contributions`] with a contribution: their
     /// shadow rays follow the others in `shadow_ray`.
     lit_lane: Vec<u32>,
+    /// Their shadow rays, gathered from the chunks in the same pass.
+    lit_ray: Vec<Ray>,
     /// Samples of a `constant` environment at `diffuse` BSDFs, for
     /// [`kernels::environment_light_rays`] and
     /// [`kernels::diffuse_light_contributions`]: chunks, each lane's path,
@@ -216,6 +222,12 @@ pub struct Queues<S: Spectrum> {
     /// it ([`KernelLight`]): the checks that do not depend on the shading
     /// point, made once per scene rather than once per path and bounce.
     kernel_lights: Vec<KernelLight>,
+    /// Per emitter the kernel samples, its triangles' corners and unit
+    /// normals if it has at most [`LIGHT_TABLE_TRIANGLES`], and 1 / its
+    /// area (empty and zero for the others): read once per scene instead
+    /// of through the mesh's index buffer per lane.
+    light_triangles: Vec<Vec<[Vec3; 4]>>,
+    light_inv_area: Vec<f32>,
     /// Per shape, whether its BSDF (as `Scene::bsdf` picks it) has a
     /// smooth lobe: next-event estimation happens there.
     smooth_shape: Vec<bool>,
@@ -285,6 +297,7 @@ impl<S: Spectrum> Default for Queues<S> {
             area: Vec::new(),
             area_meta: Vec::with_capacity(BATCH),
             lit_lane: Vec::with_capacity(BATCH),
+            lit_ray: Vec::with_capacity(BATCH),
             env: Vec::new(),
             env_path: Vec::with_capacity(BATCH),
             env_lit: Vec::with_capacity(BATCH),
@@ -294,6 +307,8 @@ impl<S: Spectrum> Default for Queues<S> {
             bsdf_of: Vec::with_capacity(BATCH),
             counts: vec![],
             kernel_lights: vec![],
+            light_triangles: vec![],
+            light_inv_area: vec![],
             smooth_shape: vec![],
             tables_of: [0; 4],
         }
@@ -523,6 +538,29 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     if q.tables_of != key {
         q.kernel_lights.clear();
         q.kernel_lights.extend((0..scene.emitters.len()).map(|e| kernel_light(scene, e)));
+        q.light_triangles.clear();
+        q.light_inv_area.clear();
+        for (e, &kind) in q.kernel_lights.iter().enumerate() {
+            let mesh = match (kind, &scene.emitters[e]) {
+                (KernelLight::No, _) => None,
+                (_, Emitter::Area(a)) => match &scene.shapes[a.shape as usize].geometry {
+                    ShapeGeometry::Mesh(m) => Some(m),
+                    _ => None,
+                },
+                _ => None,
+            };
+            // (Small lights only: the table is made per tile.)
+            let small = mesh.filter(|m| m.triangles.len() <= LIGHT_TABLE_TRIANGLES);
+            q.light_triangles.push(small.map_or_else(Vec::new, |m| {
+                (0..m.triangles.len())
+                    .map(|t| {
+                        let [a, b, c] = m.vertices(t);
+                        [a, b, c, m.face_normal_at(t, b - a, c - a)]
+                    })
+                    .collect()
+            }));
+            q.light_inv_area.push(mesh.map_or(0.0, |m| 1.0 / m.area()));
+        }
         q.smooth_shape.clear();
         q.smooth_shape.extend(scene.shapes.iter().map(|sh| {
             let Some(b) = scene.bsdfs.get(sh.bsdf as usize) else { return false };
@@ -539,6 +577,8 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     // the SIMD kernel, `constant` ones at `diffuse` BSDFs to the
     // environment's kernels, the others are sampled here.
     let live = std::mem::take(&mut q.live);
+    // Kernel lanes the kernels do not shade (pass 2 takes them one by one).
+    let mut unshaded = 0usize;
     for &i in &live {
         let i = i as usize;
         let si = &q.si[i];
@@ -551,8 +591,13 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
             let Some((index, pmf, ux)) = scene.select_emitter(u.x, &ShadingPoint::from(si)) else { continue };
             if let Some(mesh) = kernel_area_light(scene, &q.kernel_lights, index, si.p) {
                 let (tri, ux) = mesh.sample_triangle(ux);
-                let [a, b, c] = mesh.vertices(tri);
-                let tri_n = mesh.face_normal_at(tri, b - a, c - a);
+                let [a, b, c, tri_n] = match q.light_triangles.get(index).and_then(|t| t.get(tri)) {
+                    Some(&corners) => corners,
+                    None => {
+                        let [a, b, c] = mesh.vertices(tri);
+                        [a, b, c, mesh.face_normal_at(tri, b - a, c - a)]
+                    }
+                };
                 let k = q.area_meta.len();
                 if k % LANES == 0 && k / LANES == q.area.len() {
                     q.area.push(AreaChunk::default());
@@ -565,7 +610,7 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
                 }
                 ch.u[0][l] = ux;
                 ch.u[1][l] = u.y;
-                ch.inv_area[l] = 1.0 / mesh.area();
+                ch.inv_area[l] = q.light_inv_area[index];
                 // At a `diffuse` BSDF the kernels shade the sample too.
                 let mut shade = false;
                 if let (true, Bsdf::Diffuse(b), Emitter::Area(light)) = (shade_diffuse, scene.bsdf(si), &scene.emitters[index]) {
@@ -586,6 +631,7 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
                         shade = true;
                     }
                 }
+                unshaded += usize::from(!shade);
                 q.area_meta.push(AreaLane { path: i as u32, pmf, emitter: index as u32, shade });
             } else if shade_diffuse && environment_lane(scene, q, i, index, pmf, Vec2::new(ux, u.y)) {
                 // In the environment kernels' chunks.
@@ -605,6 +651,7 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     // route's. The shaded lanes' shadow rays follow, for the lanes with a
     // contribution only.
     q.lit_lane.clear();
+    q.lit_ray.clear();
     if !q.area_meta.is_empty() {
         let used = q.area_meta.len().div_ceil(LANES);
         let level = scene.accel.simd_level();
@@ -612,7 +659,23 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
         if shade_diffuse {
             kernels::diffuse_light_contributions(level, &mut q.area[..used]);
         }
-        for (k, lane) in q.area_meta.iter().enumerate() {
+        // The lanes the kernels shaded, chunk by chunk, straight to their
+        // shadow rays when none is left to the scalar code (the usual case).
+        if unshaded == 0 {
+            let lanes = q.area_meta.len();
+            for (c, ch) in q.area[..used].iter().enumerate() {
+                for l in 0..LANES.min(lanes - c * LANES) {
+                    if ch.lit[l] {
+                        q.lit_lane.push((c * LANES + l) as u32);
+                        q.lit_ray.push(Ray { o: Vec3::new(ch.ray_o[0][l], ch.ray_o[1][l], ch.ray_o[2][l]), d: Vec3::new(ch.ray_d[0][l], ch.ray_d[1][l], ch.ray_d[2][l]), tmax: ch.tmax[l] });
+                    }
+                }
+            }
+        }
+        // Otherwise lane by lane: the shaded ones to `lit_lane`, the others
+        // weighted and shaded here.
+        let one_by_one = if unshaded == 0 { &q.area_meta[..0] } else { &q.area_meta[..] };
+        for (k, lane) in one_by_one.iter().enumerate() {
             let (ch, l) = (&q.area[k / LANES], k % LANES);
             if lane.shade {
                 if ch.lit[l] {
@@ -636,10 +699,14 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
             q.shadow_term.push(term);
             q.shadow_ray.push(Ray { o: v(&ch.ray_o), d: v(&ch.ray_d), tmax: ch.tmax[l] });
         }
-        for &k in &q.lit_lane {
-            let (ch, l) = (&q.area[k as usize / LANES], k as usize % LANES);
-            let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
-            q.shadow_ray.push(Ray { o: v(&ch.ray_o), d: v(&ch.ray_d), tmax: ch.tmax[l] });
+        if unshaded == 0 {
+            q.shadow_ray.extend_from_slice(&q.lit_ray);
+        } else {
+            for &k in &q.lit_lane {
+                let (ch, l) = (&q.area[k as usize / LANES], k as usize % LANES);
+                let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
+                q.shadow_ray.push(Ray { o: v(&ch.ray_o), d: v(&ch.ray_d), tmax: ch.tmax[l] });
+            }
         }
     }
     // The environment's lanes: their rays, contributions, and the shadow
@@ -846,24 +913,28 @@ fn kernel_area_light<'s>(scene: &'s Scene, table: &[KernelLight], index: usize, 
 #[inline(never)]
 fn sample_bsdfs<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Queues<S>) {
     // Counting sort of the live paths by their shape's BSDF index.
+    // (Over local slices: through `q`, every push and count reloaded the
+    // vectors' pointers and lengths, ≈ 60 instructions a lane.)
     let kinds = scene.bsdfs.len();
     q.counts.clear();
     q.counts.resize(kinds + 1, 0);
     q.bsdf_of.clear();
-    for &i in &q.live {
-        let b = (scene.shapes[q.si[i as usize].shape as usize].bsdf as usize).min(kinds);
-        q.bsdf_of.push(b as u32);
-        q.counts[b + 1] += 1;
+    let (si, shapes) = (&q.si[..], &scene.shapes[..]);
+    q.bsdf_of.extend(q.live.iter().map(|&i| (shapes[si[i as usize].shape as usize].bsdf as usize).min(kinds) as u32));
+    let counts = &mut q.counts[..];
+    for &b in &q.bsdf_of {
+        counts[b as usize + 1] += 1;
     }
-    for k in 1..q.counts.len() {
-        q.counts[k] += q.counts[k - 1];
+    for k in 1..counts.len() {
+        counts[k] += counts[k - 1];
     }
     q.next.clear();
     q.next.resize(q.live.len(), 0);
-    for (k, &i) in q.live.iter().enumerate() {
-        let b = q.bsdf_of[k] as usize;
-        q.next[q.counts[b] as usize] = i;
-        q.counts[b] += 1;
+    let next = &mut q.next[..];
+    for (&i, &b) in q.live.iter().zip(&q.bsdf_of) {
+        let slot = &mut counts[b as usize];
+        next[*slot as usize] = i;
+        *slot += 1;
     }
     std::mem::swap(&mut q.live, &mut q.next);
 
@@ -911,10 +982,13 @@ fn sample_bsdfs<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut
                 None => scene.bsdf(si),
             };
             let sampler = &mut c.sampler[i];
-            let (u1, u2) = (sampler.next_1d(), sampler.next_2d());
             // Diffuse lanes: their directions by the SIMD kernel below.
+            // They do not use the 1-D draw (the lobe choice): it is skipped,
+            // the 2-D draw after it stays the same.
             if let Bsdf::Diffuse(db) = bsdf {
                 if !(si.wi.z <= 0.0) && c.ctx[i].wants(Lobe::DIFFUSE_REFLECTION) {
+                    sampler.skip_1d();
+                    let u2 = sampler.next_2d();
                     let k = q.diffuse_lane.len();
                     if k % LANES == 0 && k / LANES == q.diffuse.len() {
                         q.diffuse.push(DiffuseChunk::default());
@@ -936,6 +1010,7 @@ fn sample_bsdfs<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut
                     continue;
                 }
             }
+            let (u1, u2) = (sampler.next_1d(), sampler.next_2d());
             let Some(bs) = bsdf.sample_inline::<S>(&c.ctx[i], si, si.wi, u1, u2, &c.wl[i]) else { continue };
             let d = si.to_world(bs.wo);
             let o = si.spawn_origin(d);
