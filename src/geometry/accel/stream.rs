@@ -187,7 +187,7 @@ impl Accel {
         let mut sp = 0usize;
         let (mut cur, mut active) = (0u32, all);
         loop {
-            if cur & (LEAF | DIRECT) == LEAF | DIRECT && 2 * active.count_ones() as usize >= direct_count(cur) {
+            if cur & (LEAF | DIRECT) == LEAF | DIRECT && splat_leaf(active, cur) {
                 // Triangles alone, reached by at least half as many rays
                 // as it holds: each triangle against all rays at once.
                 if self.direct_leaf_closest_rays::<V>(cur, &lanes, &mut best, active) {
@@ -365,12 +365,21 @@ impl Accel {
         let mut stack = [(0u32, 0u32); STACK];
         let mut sp = 0usize;
         let (mut cur, mut active) = (0u32, all);
-        let lanes = PacketRays::<V>::new(rays);
+        // The rays in lanes, made when a leaf first needs them (most
+        // shadow packets in a big BVH reach no leaf with enough rays).
+        let mut lanes: MaybeUninit<PacketRays<V>> = MaybeUninit::uninit();
+        let mut lanes_made = false;
         loop {
-            if cur & (LEAF | DIRECT) == LEAF | DIRECT && 2 * active.count_ones() as usize >= direct_count(cur) {
+            if cur & (LEAF | DIRECT) == LEAF | DIRECT && splat_leaf(active, cur) {
                 // Triangles alone, reached by at least half as many rays
                 // as it holds: each triangle against all rays at once.
-                blocked |= self.direct_leaf_occludes_rays::<V>(cur, &lanes, tmax, active);
+                if !lanes_made {
+                    lanes.write(PacketRays::<V>::new(rays));
+                    lanes_made = true;
+                }
+                // SAFETY: written just above or before (`lanes_made`).
+                let lanes = unsafe { lanes.assume_init_ref() };
+                blocked |= self.direct_leaf_occludes_rays::<V>(cur, lanes, tmax, active);
                 if blocked == all {
                     return blocked;
                 }
@@ -457,7 +466,7 @@ impl Accel {
     /// the single-ray test's own expression (`moller_trumbore`), so each
     /// ray gets the answer `leaf_occludes` gives it. A leaf of n triangles
     /// costs n tests this way, k tests ray by ray (and k rays' lanes made):
-    /// the packet takes this way when k ≥ n / 2.
+    /// `splat_leaf` chooses.
     #[inline(always)]
     fn direct_leaf_occludes_rays<V: Lanes>(&self, cur: u32, rays: &PacketRays<V>, tmax: V, active: u32) -> u32 {
         let (p, n) = self.direct_packet::<V>(cur);
@@ -550,6 +559,19 @@ fn triangle_over_lanes<V: Lanes>(f: &[[f32; RAYS]; 12], i: usize) -> TriPacket<V
     }
 }
 
+/// Whether the rays `active` of a packet test `DIRECT` leaf `cur` triangle
+/// by triangle over all of them (else ray by ray): when 8 · rays ≥ q ·
+/// triangles. q = 4 (at least half as many rays as triangles) measured
+/// best of 0, 2, 4, 6 and never (callgrind, Cornell box and the 2 k
+/// mesh, for both queries). `SNELL_LEAF_SPLAT=q` sets it (0: always, 65:
+/// never; for measurements, the hits are the same).
+#[inline(always)]
+fn splat_leaf(active: u32, cur: u32) -> bool {
+    static Q: OnceLock<u32> = OnceLock::new();
+    let q = *Q.get_or_init(|| std::env::var("SNELL_LEAF_SPLAT").ok().and_then(|v| v.trim().parse().ok()).unwrap_or(4));
+    8 * active.count_ones() >= q.saturating_mul(direct_count(cur) as u32)
+}
+
 /// The triangle count of a `DIRECT` leaf's child word.
 #[inline(always)]
 fn direct_count(cur: u32) -> usize {
@@ -638,7 +660,12 @@ fn slab_constants(ray: &Ray) -> (Vec3A, Vec3A, Vec3A) {
 #[cfg(test)]
 mod tests {
     use super::super::tests::{prim_t, shape, triangle_soup};
-    use super::super::{Accel, Hit, NO_INSTANCE, SimdLevel};
+    use super::super::{Accel, Closest, DIRECT, Hit, LEAF, NO_INSTANCE, RayData, SimdLevel};
+    use super::super::simd::{Lanes, Portable};
+    #[cfg(target_arch = "x86_64")]
+    use super::super::simd::Avx;
+    use super::super::stats;
+    use super::{PacketRays, RAYS, lanes_by_triangle};
     use crate::geometry::mesh::Mesh;
     use crate::geometry::shape::{Shape, ShapeGeometry};
     use crate::geometry::sphere::Sphere;
@@ -833,6 +860,94 @@ mod tests {
             assert_eq!((h.shape, h.prim, h.instance), (0, expected[i], 0), "instanced ray {i}");
             let s = hits[i].expect("hit");
             assert_eq!((s.shape, s.prim, s.instance, s.t.to_bits()), (0, expected[i], 0, h.t.to_bits()), "instanced ray {i} stream");
+        }
+    }
+
+    /// Leaves of triangles tested triangle by triangle over a packet's rays
+    /// give each ray, bit for bit, what the single-ray leaf tests give it:
+    /// every `DIRECT` leaf (stored lanes, and gathered from a mesh in leaf
+    /// order), 8 rays aimed at its triangles (inside, and on their edges
+    /// and corners) from scattered origins, some cut short, starting from a
+    /// nearest hit already found at their tmax, with every lane and with
+    /// some lanes inactive; at every level.
+    #[test]
+    fn leaves_tested_over_rays_agree_with_rays_one_by_one() {
+        fn check<V: Lanes>(accel: &Accel, rng: &mut Pcg32) -> (usize, usize) {
+            let (mut hits, mut blocked) = (0, 0);
+            let leaves: Vec<u32> = accel.nodes.iter().flat_map(|n| n.children).filter(|c| c & (LEAF | DIRECT) == LEAF | DIRECT).collect();
+            assert!(leaves.len() > 50, "{} direct leaves", leaves.len());
+            for &cur in &leaves {
+                let (p, n) = accel.direct_packet::<Portable>(cur);
+                let f = lanes_by_triangle(&p);
+                let mut rays = vec![];
+                for k in 0..RAYS {
+                    let i = k % n;
+                    let v0 = Vec3::new(f[0][i], f[1][i], f[2][i]);
+                    let (e1, e2) = (-Vec3::new(f[3][i], f[4][i], f[5][i]), Vec3::new(f[6][i], f[7][i], f[8][i]));
+                    let (a, b) = match k % 4 {
+                        0 => (0.0, 0.0),
+                        1 => (0.5, 0.0),
+                        2 => (0.5, 0.5),
+                        _ => (rng.next_f32() * 0.5, rng.next_f32() * 0.5),
+                    };
+                    let target = v0 + e1 * a + e2 * b;
+                    let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 6.0 - 3.0;
+                    let d = (target - o).normalize();
+                    let tmax = match k % 3 {
+                        0 => f32::INFINITY,
+                        1 => (target - o).length() * (0.5 + rng.next_f32()),
+                        _ => (target - o).length(),
+                    };
+                    rays.push(Ray { o, d, tmax });
+                }
+                let lanes = PacketRays::<V>::new(&rays);
+                for active in [0xff, rng.next_u32() & 0xff | 1] {
+                    let mut best = [Closest::new(-1.0, 0); RAYS];
+                    for k in 0..RAYS {
+                        best[k] = Closest::new(rays[k].tmax, 0);
+                    }
+                    let mut one_by_one = best;
+                    accel.direct_leaf_closest_rays::<V>(cur, &lanes, &mut best, active);
+                    let tmax = V::from_array(std::array::from_fn(|k| rays[k].tmax));
+                    let occluded = accel.direct_leaf_occludes_rays::<V>(cur, &lanes, tmax, active);
+                    for k in 0..RAYS {
+                        let r = RayData::<V>::new(&rays[k]);
+                        if active & (1 << k) == 0 {
+                            assert!(!best[k].found && occluded & (1 << k) == 0);
+                            continue;
+                        }
+                        accel.leaf_closest::<false, V>(cur, &r, &rays[k], &mut one_by_one[k], stats::CLOSEST_PACKET);
+                        let key = |c: &Closest| (c.found, c.t.to_bits(), c.key, c.b1.to_bits(), c.b2.to_bits());
+                        assert_eq!(key(&best[k]), key(&one_by_one[k]), "leaf {cur:#x} ray {k}");
+                        let single = accel.leaf_occludes::<false, V>(cur, &r, &rays[k], rays[k].tmax, stats::OCCLUDED_PACKET);
+                        assert_eq!(occluded & (1 << k) != 0, single, "leaf {cur:#x} ray {k}: occlusion");
+                        hits += best[k].found as usize;
+                        blocked += single as usize;
+                    }
+                }
+            }
+            (hits, blocked)
+        }
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2,fma")]
+        fn check_avx(accel: &Accel, rng: &mut Pcg32) -> (usize, usize) {
+            check::<Avx>(accel, rng)
+        }
+        let mut rng = Pcg32::new(21, 4);
+        let mut shapes = vec![shape(ShapeGeometry::Mesh(triangle_soup(&mut rng, 1500, 0.7)))];
+        let stored = Accel::build(&shapes);
+        let mut ordered = Accel::build(&shapes);
+        ordered.gather_triangles();
+        ordered.leaf_order(&mut shapes, true);
+        for accel in [&stored, &ordered] {
+            let (hits, blocked) = check::<Portable>(accel, &mut rng);
+            assert!(hits > 1000 && blocked > 1000, "{hits} hits, {blocked} blocked");
+            #[cfg(target_arch = "x86_64")]
+            if SimdLevel::Avx2.supported() {
+                // SAFETY: the CPU has AVX2 and FMA.
+                let (hits, blocked) = unsafe { check_avx(accel, &mut rng) };
+                assert!(hits > 1000 && blocked > 1000, "{hits} hits, {blocked} blocked");
+            }
         }
     }
 
