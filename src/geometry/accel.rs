@@ -494,30 +494,42 @@ impl<V: Lanes> RayData<V> {
     /// exactly tmax).
     #[inline(always)]
     fn triangles<const LOOSE: bool>(&self, p: &TriPacket<V>, tmax: f32) -> ([V; 4], u32) {
-        let [dx, dy, dz] = self.d8;
-        // c = v0 − o, r = d × c
-        let cx = p.v0[0] - self.o8[0];
-        let cy = p.v0[1] - self.o8[1];
-        let cz = p.v0[2] - self.o8[2];
-        let rx = dy.mul_sub(cz, dz * cy);
-        let ry = dz.mul_sub(cx, dx * cz);
-        let rz = dx.mul_sub(cy, dy * cx);
-        let det = dx.mul_add(p.ng[0], dy.mul_add(p.ng[1], dz * p.ng[2]));
-        let u = p.e2[0].mul_add(rx, p.e2[1].mul_add(ry, p.e2[2] * rz));
-        let v = p.e1n[0].mul_add(rx, p.e1n[1].mul_add(ry, p.e1n[2] * rz));
-        let t = cx.mul_add(p.ng[0], cy.mul_add(p.ng[1], cz * p.ng[2]));
-        let sign = det.sign();
-        let adet = det.xor(sign);
-        let (t, u, v) = (t.xor(sign), u.xor(sign), v.xor(sign));
-        let zero = V::splat(0.0);
-        let ok = V::splat(1e-12).le(adet)
-            & zero.le(u)
-            & zero.le(v)
-            & (u + v).le(adet)
-            & zero.lt(t)
-            & if LOOSE { t.le(V::splat(tmax) * adet * V::splat(1.0 + 8.0 * f32::EPSILON)) } else { t.lt(V::splat(tmax) * adet) };
-        ([t, u, v, adet], ok.bitmask())
+        moller_trumbore::<LOOSE, V>(&self.o8, &self.d8, p, V::splat(tmax))
     }
+}
+
+/// Möller–Trumbore lane by lane (see `RayData::triangles`): lane k tests
+/// the ray (`o[..][k]`, `d[..][k]`) against the triangle in lane k of `p`
+/// up to `tmax[k]`. The single-ray test splats one ray over the lanes of a
+/// leaf's triangles; an occlusion packet (`stream.rs`) splats one triangle
+/// over its rays. Each lane's result depends on that lane's inputs alone
+/// and both go through this one expression, so a ray meets a triangle
+/// with the same bits either way.
+#[inline(always)]
+fn moller_trumbore<const LOOSE: bool, V: Lanes>(o: &[V; 3], d: &[V; 3], p: &TriPacket<V>, tmax: V) -> ([V; 4], u32) {
+    let [dx, dy, dz] = *d;
+    // c = v0 − o, r = d × c
+    let cx = p.v0[0] - o[0];
+    let cy = p.v0[1] - o[1];
+    let cz = p.v0[2] - o[2];
+    let rx = dy.mul_sub(cz, dz * cy);
+    let ry = dz.mul_sub(cx, dx * cz);
+    let rz = dx.mul_sub(cy, dy * cx);
+    let det = dx.mul_add(p.ng[0], dy.mul_add(p.ng[1], dz * p.ng[2]));
+    let u = p.e2[0].mul_add(rx, p.e2[1].mul_add(ry, p.e2[2] * rz));
+    let v = p.e1n[0].mul_add(rx, p.e1n[1].mul_add(ry, p.e1n[2] * rz));
+    let t = cx.mul_add(p.ng[0], cy.mul_add(p.ng[1], cz * p.ng[2]));
+    let sign = det.sign();
+    let adet = det.xor(sign);
+    let (t, u, v) = (t.xor(sign), u.xor(sign), v.xor(sign));
+    let zero = V::splat(0.0);
+    let ok = V::splat(1e-12).le(adet)
+        & zero.le(u)
+        & zero.le(v)
+        & (u + v).le(adet)
+        & zero.lt(t)
+        & if LOOSE { t.le(tmax * adet * V::splat(1.0 + 8.0 * f32::EPSILON)) } else { t.lt(tmax * adet) };
+    ([t, u, v, adet], ok.bitmask())
 }
 
 impl<V: Lanes> RayData<V> {
@@ -1289,23 +1301,11 @@ impl Accel {
         let _ = kind;
         count!(kind, stats::LEAVES, 1);
         if cur & DIRECT != 0 {
-            let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
+            let (p, n) = self.direct_packet::<V>(cur);
             count!(kind, stats::TRIS, n);
-            if self.keeps_packets() {
-                let key = |lane: usize| {
-                    let tri = self.tris[first + lane];
-                    tie_key(self.meshes[tri.mesh as usize].shape, tri.prim, NO_INSTANCE)
-                };
-                if let Some((lane, t, u, v)) = r.closest_in(&self.lanes_at::<V>(first, n), n, best, key) {
-                    best.set(t, key(lane), u, v);
-                }
-            } else {
-                let m = &self.meshes[self.direct as usize];
-                let p = gather_run::<V>(&m.positions, &m.triangles[first..first + n]);
-                let key = |lane: usize| tie_key(m.shape, (first + lane) as u32, NO_INSTANCE);
-                if let Some((lane, t, u, v)) = r.closest_in(&p, n, best, key) {
-                    best.set(t, key(lane), u, v);
-                }
+            let key = |lane: usize| self.direct_key(cur, lane);
+            if let Some((lane, t, u, v)) = r.closest_in(&p, n, best, key) {
+                best.set(t, key(lane), u, v);
             }
             return;
         }
@@ -1398,6 +1398,32 @@ impl Accel {
         }
     }
 
+    /// The triangles of `DIRECT` leaf `cur`, one a lane, and their count
+    /// (lanes past it hold other floats).
+    #[inline(always)]
+    fn direct_packet<V: Lanes>(&self, cur: u32) -> (TriPacket<V>, usize) {
+        let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
+        let p = if self.keeps_packets() {
+            self.lanes_at::<V>(first, n)
+        } else {
+            let m = &self.meshes[self.direct as usize];
+            gather_run::<V>(&m.positions, &m.triangles[first..first + n])
+        };
+        (p, n)
+    }
+
+    /// The tie key of triangle `lane` of `DIRECT` leaf `cur`.
+    #[inline(always)]
+    fn direct_key(&self, cur: u32, lane: usize) -> u128 {
+        let first = ((cur & !(LEAF | DIRECT)) >> 3) as usize;
+        if self.keeps_packets() {
+            let tri = self.tris[first + lane];
+            tie_key(self.meshes[tri.mesh as usize].shape, tri.prim, NO_INSTANCE)
+        } else {
+            tie_key(self.meshes[self.direct as usize].shape, (first + lane) as u32, NO_INSTANCE)
+        }
+    }
+
     /// Whether anything in leaf `cur` (a child word with `LEAF` set) lies on
     /// `ray` (lanes `r`) before `tmax`; instances are traced into their
     /// groups when `INSTANCES`. Shared by the single-ray and packet any-hits.
@@ -1406,14 +1432,8 @@ impl Accel {
         let _ = kind;
         count!(kind, stats::LEAVES, 1);
         if cur & DIRECT != 0 {
-            let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
+            let (p, n) = self.direct_packet::<V>(cur);
             count!(kind, stats::TRIS, n);
-            let p = if self.keeps_packets() {
-                self.lanes_at::<V>(first, n)
-            } else {
-                let m = &self.meshes[self.direct as usize];
-                gather_run::<V>(&m.positions, &m.triangles[first..first + n])
-            };
             return r.triangles::<false>(&p, tmax).1 & lanes_of(n) != 0;
         }
         let leaf = &self.leaves[(cur & !LEAF) as usize];

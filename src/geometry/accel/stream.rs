@@ -4,8 +4,8 @@
 //!
 //! | query | how |
 //! |---|---|
-//! | [`Accel::intersect_stream`] | one SIMD level dispatch per batch; each group of 8 consecutive rays that is coherent (same direction octant, origins within 10⁻³ of each other: camera rays of one pixel) is traced as a packet (`closest_packet`), the others one by one with the single-ray traversal (8 child boxes per instruction), compiled inside the batch loop |
-//! | [`Accel::occluded_stream`] | packets of 8 rays (one ray per lane): each child box of a node is tested against all 8 rays at once, each ray carries its own mask of the nodes it enters, so it visits exactly the nodes its single-ray traversal visits; leaves test the rays that reach them one by one |
+//! | [`Accel::intersect_stream`] | one SIMD level dispatch per batch; each group of 8 consecutive rays that is coherent (same direction octant, origins within 10⁻³ of each other: camera rays of one pixel) is traced as a packet (`closest_packet`), the others one by one with the single-ray traversal (8 child boxes per instruction), compiled inside the batch loop; a packet's leaf of triangles that at least half as many rays reach as it holds is tested triangle by triangle over all the rays at once, other leaves ray by ray |
+//! | [`Accel::occluded_stream`] | packets of 8 rays (one ray per lane): each child box of a node is tested against all 8 rays at once, each ray carries its own mask of the nodes it enters, so it visits exactly the nodes its single-ray traversal visits; leaves as in the packets of closest hits (triangle by triangle over the rays, or ray by ray) |
 //!
 //! Why packets give the same closest hits: the traversal's answer does not
 //! depend on the order of visits. Among hits at the same t the lowest
@@ -18,7 +18,11 @@
 //! wavefront renderer promises the same image as `path`). Occlusion is a
 //! yes/no answer independent of the order anyway; its slab test per lane is
 //! the very expression of the single-ray test (same near/far planes, same
-//! fused multiply-subtract, same conservative widening).
+//! fused multiply-subtract, same conservative widening). A leaf tested
+//! triangle by triangle over a packet's rays (one ray per lane, the
+//! triangle splatted) runs the single-ray triangle test's own code
+//! (`moller_trumbore`) with the operands in other lanes, so every ray
+//! meets every triangle with the same bits.
 //!
 //! Measured (AVX-512, 2 threads, machine at load 7-11, whole-process CPU
 //! seconds): 1 M triangles -5 % (2 runs), 4 M -2 % (3 runs), the Cornell box
@@ -32,7 +36,7 @@
 //! the single-ray traversal for both queries.
 
 use super::stats::{self, count};
-use super::{Accel, Closest, Hit, LEAF, Lanes, Node, RayData, STACK, WIDTH, lanes_of};
+use super::{Accel, Closest, DIRECT, Hit, LEAF, Lanes, Node, RayData, STACK, TriPacket, WIDTH, lanes_of, moller_trumbore};
 #[cfg(target_arch = "x86_64")]
 use super::Avx;
 use super::{Portable, SimdLevel};
@@ -148,9 +152,11 @@ impl Accel {
     /// without instances): each child box is tested against all rays at
     /// once, each ray with its own reach (`Closest::reach`), children are
     /// visited front to back along the rays' mean direction, and leaves
-    /// test the rays that reach them one by one (`leaf_closest`, the
-    /// single-ray leaf test). The tie rule makes the answer independent of
-    /// the visiting order, so it is the single-ray traversal's.
+    /// test their triangles over all the rays that reach them
+    /// (`direct_leaf_closest_rays`) or those rays one by one
+    /// (`leaf_closest`, the single-ray leaf test). The tie rule makes the
+    /// answer independent of the visiting order, so it is the single-ray
+    /// traversal's.
     #[inline(always)]
     fn closest_packet<V: Lanes>(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         let n = rays.len();
@@ -159,13 +165,15 @@ impl Accel {
         let mut best = [Closest::new(-1.0, 0); RAYS];
         let mut dsum = Vec3A::ZERO;
         // The single-ray lanes of each ray, for the leaves.
+        // made when a leaf or a split first needs them (the mask `made`).
         let mut rd: [MaybeUninit<RayData<V>>; RAYS] = [const { MaybeUninit::uninit() }; RAYS];
+        let mut made = 0u32;
         for k in 0..n {
             best[k] = Closest::new(rays[k].tmax, 0);
             reach[k] = best[k].reach();
             dsum += Vec3A::from(rays[k].d);
-            rd[k].write(RayData::<V>::new(&rays[k]));
         }
+        let lanes = PacketRays::<V>::new(rays);
         let mut reach_v = V::from_array(reach);
         let zero = V::splat(0.0);
         let far = V::splat(super::FAR);
@@ -179,7 +187,16 @@ impl Accel {
         let mut sp = 0usize;
         let (mut cur, mut active) = (0u32, all);
         loop {
-            if cur & LEAF == 0 && active.count_ones() < min_rays {
+            if cur & (LEAF | DIRECT) == LEAF | DIRECT && splat_leaf(active, cur) {
+                // Triangles alone, reached by at least half as many rays
+                // as it holds: each triangle against all rays at once.
+                if self.direct_leaf_closest_rays::<V>(cur, &lanes, &mut best, active) {
+                    for k in 0..n {
+                        reach[k] = best[k].reach();
+                    }
+                    reach_v = V::from_array(reach);
+                }
+            } else if cur & LEAF == 0 && active.count_ones() < min_rays {
                 // Too few rays left for the packet to pay: each goes on
                 // alone below this node.
                 let mut m = active;
@@ -188,7 +205,11 @@ impl Accel {
                 while m != 0 {
                     let k = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    // SAFETY: lanes of `active` are below `n`, written above.
+                    if made & (1 << k) == 0 {
+                        rd[k].write(RayData::<V>::new(&rays[k]));
+                        made |= 1 << k;
+                    }
+                    // SAFETY: written just above or before (`made`).
                     let r = unsafe { rd[k].assume_init_ref() };
                     let before = best[k].t;
                     self.closest_from::<false, false, V>(r, &rays[k], &mut best[k], cur, stats::CLOSEST_PACKET);
@@ -242,7 +263,11 @@ impl Accel {
                 while m != 0 {
                     let k = m.trailing_zeros() as usize;
                     m &= m - 1;
-                    // SAFETY: lanes of `active` are below `n`, written above.
+                    if made & (1 << k) == 0 {
+                        rd[k].write(RayData::<V>::new(&rays[k]));
+                        made |= 1 << k;
+                    }
+                    // SAFETY: written just above or before (`made`).
                     let r = unsafe { rd[k].assume_init_ref() };
                     let before = best[k].t;
                     self.leaf_closest::<false, V>(cur, r, &rays[k], &mut best[k], stats::CLOSEST_PACKET);
@@ -340,8 +365,25 @@ impl Accel {
         let mut stack = [(0u32, 0u32); STACK];
         let mut sp = 0usize;
         let (mut cur, mut active) = (0u32, all);
+        // The rays in lanes, made when a leaf first needs them (most
+        // shadow packets in a big BVH reach no leaf with enough rays).
+        let mut lanes: MaybeUninit<PacketRays<V>> = MaybeUninit::uninit();
+        let mut lanes_made = false;
         loop {
-            if cur & LEAF != 0 || active.count_ones() < min_rays {
+            if cur & (LEAF | DIRECT) == LEAF | DIRECT && splat_leaf(active, cur) {
+                // Triangles alone, reached by at least half as many rays
+                // as it holds: each triangle against all rays at once.
+                if !lanes_made {
+                    lanes.write(PacketRays::<V>::new(rays));
+                    lanes_made = true;
+                }
+                // SAFETY: written just above or before (`lanes_made`).
+                let lanes = unsafe { lanes.assume_init_ref() };
+                blocked |= self.direct_leaf_occludes_rays::<V>(cur, lanes, tmax, active);
+                if blocked == all {
+                    return blocked;
+                }
+            } else if cur & LEAF != 0 || active.count_ones() < min_rays {
                 // A leaf, or too few rays left for the packet to pay: each
                 // ray goes on alone.
                 if cur & LEAF == 0 {
@@ -417,6 +459,146 @@ impl Accel {
     }
 }
 
+impl Accel {
+    /// The rays of `active` (lanes of `rays`, each up to its lane of
+    /// `tmax`) that something in `DIRECT` leaf `cur` occludes: its
+    /// triangles one at a time, each over all the rays (one per lane), by
+    /// the single-ray test's own expression (`moller_trumbore`), so each
+    /// ray gets the answer `leaf_occludes` gives it. A leaf of n triangles
+    /// costs n tests this way, k tests ray by ray (and k rays' lanes made):
+    /// `splat_leaf` chooses.
+    #[inline(always)]
+    fn direct_leaf_occludes_rays<V: Lanes>(&self, cur: u32, rays: &PacketRays<V>, tmax: V, active: u32) -> u32 {
+        let (p, n) = self.direct_packet::<V>(cur);
+        count!(stats::OCCLUDED_PACKET, stats::LEAVES, active.count_ones());
+        count!(stats::OCCLUDED_PACKET, stats::TRIS, n as u32 * active.count_ones());
+        let f = lanes_by_triangle(&p);
+        let mut hit = 0u32;
+        for i in 0..n {
+            let tri = triangle_over_lanes::<V>(&f, i);
+            hit |= moller_trumbore::<false, V>(&rays.o, &rays.d, &tri, tmax).1 & active;
+            if hit == active {
+                break;
+            }
+        }
+        hit
+    }
+}
+
+impl Accel {
+    /// The closest hits of the rays of `active` (lanes of `rays`) in
+    /// `DIRECT` leaf `cur`, into their `best`; whether any changed. Its
+    /// triangles one at a time, each over all the rays, by the single-ray
+    /// test's expressions (`moller_trumbore`, the same division), each hit
+    /// taken under the tie rule (`Closest::accepts`): what `leaf_closest`
+    /// finds for each ray. (A lane's mask is made with its nearest hit so
+    /// far, which may have come nearer since the leaf began; a triangle it
+    /// then drops is rounded beyond that hit, so it could not win.)
+    #[inline(always)]
+    fn direct_leaf_closest_rays<V: Lanes>(&self, cur: u32, rays: &PacketRays<V>, best: &mut [Closest; RAYS], active: u32) -> bool {
+        let (p, n) = self.direct_packet::<V>(cur);
+        count!(stats::CLOSEST_PACKET, stats::LEAVES, active.count_ones());
+        count!(stats::CLOSEST_PACKET, stats::TRIS, n as u32 * active.count_ones());
+        let f = lanes_by_triangle(&p);
+        let mut tmax = [0.0f32; RAYS];
+        for k in 0..RAYS {
+            tmax[k] = best[k].t;
+        }
+        let mut tmax_v = V::from_array(tmax);
+        let mut changed = false;
+        for i in 0..n {
+            let tri = triangle_over_lanes::<V>(&f, i);
+            let ([t, u, v, adet], mask) = moller_trumbore::<true, V>(&rays.o, &rays.d, &tri, tmax_v);
+            let mut mask = mask & active;
+            if mask == 0 {
+                continue;
+            }
+            let inv = V::splat(1.0) / adet;
+            let (t, u, v) = ((t * inv).to_array(), (u * inv).to_array(), (v * inv).to_array());
+            let key = self.direct_key(cur, i);
+            let mut took = false;
+            while mask != 0 {
+                let k = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                if best[k].accepts(t[k], key) {
+                    best[k].set(t[k], key, u[k], v[k]);
+                    tmax[k] = t[k];
+                    took = true;
+                }
+            }
+            if took {
+                tmax_v = V::from_array(tmax);
+                changed = true;
+            }
+        }
+        changed
+    }
+}
+
+/// The twelve rows of a packet of triangles (v0, −e1, e2, the normal; x,
+/// y, z each), lane by lane.
+#[inline(always)]
+fn lanes_by_triangle<V: Lanes>(p: &TriPacket<V>) -> [[f32; RAYS]; 12] {
+    // (Loops, not closures: see `PacketSlabs`.)
+    let rows = [p.v0[0], p.v0[1], p.v0[2], p.e1n[0], p.e1n[1], p.e1n[2], p.e2[0], p.e2[1], p.e2[2], p.ng[0], p.ng[1], p.ng[2]];
+    let mut f = [[0.0f32; RAYS]; 12];
+    for j in 0..12 {
+        f[j] = rows[j].to_array();
+    }
+    f
+}
+
+/// Triangle `i` of `lanes_by_triangle`'s rows, in every lane.
+#[inline(always)]
+fn triangle_over_lanes<V: Lanes>(f: &[[f32; RAYS]; 12], i: usize) -> TriPacket<V> {
+    TriPacket {
+        v0: [V::splat(f[0][i]), V::splat(f[1][i]), V::splat(f[2][i])],
+        e1n: [V::splat(f[3][i]), V::splat(f[4][i]), V::splat(f[5][i])],
+        e2: [V::splat(f[6][i]), V::splat(f[7][i]), V::splat(f[8][i])],
+        ng: [V::splat(f[9][i]), V::splat(f[10][i]), V::splat(f[11][i])],
+    }
+}
+
+/// Whether the rays `active` of a packet test `DIRECT` leaf `cur` triangle
+/// by triangle over all of them (else ray by ray): when 8 · rays ≥ q ·
+/// triangles. q = 4 (at least half as many rays as triangles) measured
+/// best of 0, 2, 4, 6 and never (callgrind, Cornell box and the 2 k
+/// mesh, for both queries). `SNELL_LEAF_SPLAT=q` sets it (0: always, 65:
+/// never; for measurements, the hits are the same).
+#[inline(always)]
+fn splat_leaf(active: u32, cur: u32) -> bool {
+    static Q: OnceLock<u32> = OnceLock::new();
+    let q = *Q.get_or_init(|| std::env::var("SNELL_LEAF_SPLAT").ok().and_then(|v| v.trim().parse().ok()).unwrap_or(4));
+    8 * active.count_ones() >= q.saturating_mul(direct_count(cur) as u32)
+}
+
+/// The triangle count of a `DIRECT` leaf's child word.
+#[inline(always)]
+fn direct_count(cur: u32) -> usize {
+    (cur & 7) as usize + 1
+}
+
+/// A packet's origins and directions, ray k in lane k (unused lanes zero:
+/// no triangle meets a zero direction).
+struct PacketRays<V> {
+    o: [V; 3],
+    d: [V; 3],
+}
+
+impl<V: Lanes> PacketRays<V> {
+    #[inline(always)]
+    fn new(rays: &[Ray]) -> Self {
+        let (mut o, mut d) = ([[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3]);
+        for k in 0..rays.len() {
+            for a in 0..3 {
+                o[a][k] = rays[k].o[a];
+                d[a][k] = rays[k].d[a];
+            }
+        }
+        PacketRays { o: [V::from_array(o[0]), V::from_array(o[1]), V::from_array(o[2])], d: [V::from_array(d[0]), V::from_array(d[1]), V::from_array(d[2])] }
+    }
+}
+
 /// Whether a packet of rays is worth tracing together: all run into the
 /// same octant and start within a small ball (camera rays of one pixel or
 /// a few neighbours; after a bounce rays rarely are).
@@ -478,7 +660,12 @@ fn slab_constants(ray: &Ray) -> (Vec3A, Vec3A, Vec3A) {
 #[cfg(test)]
 mod tests {
     use super::super::tests::{prim_t, shape, triangle_soup};
-    use super::super::{Accel, Hit, NO_INSTANCE, SimdLevel};
+    use super::super::{Accel, Closest, DIRECT, Hit, LEAF, NO_INSTANCE, RayData, SimdLevel};
+    use super::super::simd::{Lanes, Portable};
+    #[cfg(target_arch = "x86_64")]
+    use super::super::simd::Avx;
+    use super::super::stats;
+    use super::{PacketRays, RAYS, lanes_by_triangle};
     use crate::geometry::mesh::Mesh;
     use crate::geometry::shape::{Shape, ShapeGeometry};
     use crate::geometry::sphere::Sphere;
@@ -673,6 +860,94 @@ mod tests {
             assert_eq!((h.shape, h.prim, h.instance), (0, expected[i], 0), "instanced ray {i}");
             let s = hits[i].expect("hit");
             assert_eq!((s.shape, s.prim, s.instance, s.t.to_bits()), (0, expected[i], 0, h.t.to_bits()), "instanced ray {i} stream");
+        }
+    }
+
+    /// Leaves of triangles tested triangle by triangle over a packet's rays
+    /// give each ray, bit for bit, what the single-ray leaf tests give it:
+    /// every `DIRECT` leaf (stored lanes, and gathered from a mesh in leaf
+    /// order), 8 rays aimed at its triangles (inside, and on their edges
+    /// and corners) from scattered origins, some cut short, starting from a
+    /// nearest hit already found at their tmax, with every lane and with
+    /// some lanes inactive; at every level.
+    #[test]
+    fn leaves_tested_over_rays_agree_with_rays_one_by_one() {
+        fn check<V: Lanes>(accel: &Accel, rng: &mut Pcg32) -> (usize, usize) {
+            let (mut hits, mut blocked) = (0, 0);
+            let leaves: Vec<u32> = accel.nodes.iter().flat_map(|n| n.children).filter(|c| c & (LEAF | DIRECT) == LEAF | DIRECT).collect();
+            assert!(leaves.len() > 50, "{} direct leaves", leaves.len());
+            for &cur in &leaves {
+                let (p, n) = accel.direct_packet::<Portable>(cur);
+                let f = lanes_by_triangle(&p);
+                let mut rays = vec![];
+                for k in 0..RAYS {
+                    let i = k % n;
+                    let v0 = Vec3::new(f[0][i], f[1][i], f[2][i]);
+                    let (e1, e2) = (-Vec3::new(f[3][i], f[4][i], f[5][i]), Vec3::new(f[6][i], f[7][i], f[8][i]));
+                    let (a, b) = match k % 4 {
+                        0 => (0.0, 0.0),
+                        1 => (0.5, 0.0),
+                        2 => (0.5, 0.5),
+                        _ => (rng.next_f32() * 0.5, rng.next_f32() * 0.5),
+                    };
+                    let target = v0 + e1 * a + e2 * b;
+                    let o = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 6.0 - 3.0;
+                    let d = (target - o).normalize();
+                    let tmax = match k % 3 {
+                        0 => f32::INFINITY,
+                        1 => (target - o).length() * (0.5 + rng.next_f32()),
+                        _ => (target - o).length(),
+                    };
+                    rays.push(Ray { o, d, tmax });
+                }
+                let lanes = PacketRays::<V>::new(&rays);
+                for active in [0xff, rng.next_u32() & 0xff | 1] {
+                    let mut best = [Closest::new(-1.0, 0); RAYS];
+                    for k in 0..RAYS {
+                        best[k] = Closest::new(rays[k].tmax, 0);
+                    }
+                    let mut one_by_one = best;
+                    accel.direct_leaf_closest_rays::<V>(cur, &lanes, &mut best, active);
+                    let tmax = V::from_array(std::array::from_fn(|k| rays[k].tmax));
+                    let occluded = accel.direct_leaf_occludes_rays::<V>(cur, &lanes, tmax, active);
+                    for k in 0..RAYS {
+                        let r = RayData::<V>::new(&rays[k]);
+                        if active & (1 << k) == 0 {
+                            assert!(!best[k].found && occluded & (1 << k) == 0);
+                            continue;
+                        }
+                        accel.leaf_closest::<false, V>(cur, &r, &rays[k], &mut one_by_one[k], stats::CLOSEST_PACKET);
+                        let key = |c: &Closest| (c.found, c.t.to_bits(), c.key, c.b1.to_bits(), c.b2.to_bits());
+                        assert_eq!(key(&best[k]), key(&one_by_one[k]), "leaf {cur:#x} ray {k}");
+                        let single = accel.leaf_occludes::<false, V>(cur, &r, &rays[k], rays[k].tmax, stats::OCCLUDED_PACKET);
+                        assert_eq!(occluded & (1 << k) != 0, single, "leaf {cur:#x} ray {k}: occlusion");
+                        hits += best[k].found as usize;
+                        blocked += single as usize;
+                    }
+                }
+            }
+            (hits, blocked)
+        }
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2,fma")]
+        fn check_avx(accel: &Accel, rng: &mut Pcg32) -> (usize, usize) {
+            check::<Avx>(accel, rng)
+        }
+        let mut rng = Pcg32::new(21, 4);
+        let mut shapes = vec![shape(ShapeGeometry::Mesh(triangle_soup(&mut rng, 1500, 0.7)))];
+        let stored = Accel::build(&shapes);
+        let mut ordered = Accel::build(&shapes);
+        ordered.gather_triangles();
+        ordered.leaf_order(&mut shapes, true);
+        for accel in [&stored, &ordered] {
+            let (hits, blocked) = check::<Portable>(accel, &mut rng);
+            assert!(hits > 1000 && blocked > 1000, "{hits} hits, {blocked} blocked");
+            #[cfg(target_arch = "x86_64")]
+            if SimdLevel::Avx2.supported() {
+                // SAFETY: the CPU has AVX2 and FMA.
+                let (hits, blocked) = unsafe { check_avx(accel, &mut rng) };
+                assert!(hits > 1000 && blocked > 1000, "{hits} hits, {blocked} blocked");
+            }
         }
     }
 
