@@ -86,19 +86,6 @@ impl Multijitter {
 
     #[inline(never)]
     pub fn next_2d(&mut self) -> Vec2 {
-        // Power-of-two grids (the common counts) with their sizes known at
-        // compile time: the permutations' masks become constants and the
-        // hash steps that shift every bit of a small grid out (xors of zero)
-        // vanish. The same points as the general code below.
-        macro_rules! grids {
-            ($(($mb:literal, $kb:literal)),*) => {
-                match (self.cols, self.rows) {
-                    $((c, r) if c == 1 << $mb && r == 1 << $kb => return self.next_2d_pow2::<$mb, $kb>(),)*
-                    _ => {}
-                }
-            };
-        }
-        grids!((0, 0), (0, 1), (1, 1), (1, 2), (2, 2), (2, 3), (3, 3), (3, 4), (4, 4), (4, 5), (5, 5), (5, 6), (6, 6));
         // Three permutation seeds from one hash of the draw.
         let h = dim_hash(self.id.pixel_seed, self.dim);
         let s = permute(self.id.index, self.id.count, h as u32);
@@ -110,43 +97,6 @@ impl Multijitter {
         let (jx, jy) = self.offset();
         let (x, y) = match self.inverses {
             // Powers of two: multiplying by the exact inverse is the division.
-            Some((inv_m, inv_k, _)) => ((cx as f32 + (sx as f32 + jx) * inv_k) * inv_m, (cy as f32 + (sy as f32 + jy) * inv_m) * inv_k),
-            None => ((cx as f32 + (sx as f32 + jx) / k as f32) / m as f32, (cy as f32 + (sy as f32 + jy) / m as f32) / k as f32),
-        };
-        self.dim += 1;
-        Vec2::new(x.min(ONE_MINUS_EPSILON), y.min(ONE_MINUS_EPSILON))
-    }
-}
-
-impl Multijitter {
-    /// [`Multijitter::next_2d`] on a 2^MB × 2^KB grid (`cols` and `rows`).
-    #[inline(always)]
-    fn next_2d_pow2<const MB: u32, const KB: u32>(&mut self) -> Vec2 {
-        let (m, k) = (1u32 << MB, 1u32 << KB);
-        let h = dim_hash(self.id.pixel_seed, self.dim);
-        let s = permute(self.id.index, m * k, h as u32);
-        let (cx, cy) = (s & (m - 1), s >> MB);
-        let sx = permute(cy, k, (h >> 32) as u32);
-        let sy = permute(cx, m, ((h >> 16) as u32).wrapping_mul(0x68bc_21eb));
-        let (jx, jy) = self.offset();
-        // 1/m and 1/k exactly: multiplying is dividing.
-        let (inv_m, inv_k) = (1.0 / m as f32, 1.0 / k as f32);
-        let (x, y) = ((cx as f32 + (sx as f32 + jx) * inv_k) * inv_m, (cy as f32 + (sy as f32 + jy) * inv_m) * inv_k);
-        self.dim += 1;
-        Vec2::new(x.min(ONE_MINUS_EPSILON), y.min(ONE_MINUS_EPSILON))
-    }
-
-    /// The general [`Multijitter::next_2d`] (for the tests of the special cases).
-    #[cfg(test)]
-    fn next_2d_general(&mut self) -> Vec2 {
-        let h = dim_hash(self.id.pixel_seed, self.dim);
-        let s = permute(self.id.index, self.id.count, h as u32);
-        let (m, k) = (self.cols, self.rows);
-        let (cx, cy) = (s % m, s / m);
-        let sx = permute(cy, k, (h >> 32) as u32);
-        let sy = permute(cx, m, ((h >> 16) as u32).wrapping_mul(0x68bc_21eb));
-        let (jx, jy) = self.offset();
-        let (x, y) = match self.inverses {
             Some((inv_m, inv_k, _)) => ((cx as f32 + (sx as f32 + jx) * inv_k) * inv_m, (cy as f32 + (sy as f32 + jy) * inv_m) * inv_k),
             None => ((cx as f32 + (sx as f32 + jx) / k as f32) / m as f32, (cy as f32 + (sy as f32 + jy) / m as f32) / k as f32),
         };
@@ -183,19 +133,6 @@ mod tests {
                     assert_cells(&pts, m * k, 1, 1, "multijitter x strata");
                     assert_cells(&pts, 1, m * k, 1, "multijitter y strata");
                     assert_cells(&points(&spec, pixel, 2, pattern, false), m * k, 1, 1, "multijitter 1-D");
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn power_of_two_grids_draw_the_general_points() {
-        for n in [1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 8192] {
-            for index in [0, 1, n / 2, n - 1, n + 3] {
-                let id = SampleId::new(pixel_seed(5, 7, 9), n, index);
-                let (mut fast, mut slow) = (super::Multijitter::start(id, true), super::Multijitter::start(id, true));
-                for d in 0..30 {
-                    assert_eq!(fast.next_2d(), slow.next_2d_general(), "{n} samples, index {index}, draw {d}");
                 }
             }
         }

@@ -139,22 +139,11 @@ impl Sobol {
     }
 
     /// The permuted index of this draw and its two scramble seeds.
-    #[inline(always)]
+    #[inline]
     fn draw(&mut self) -> (u64, u32, u32) {
         // The permutation seed and two scramble seeds from the draw's hash.
         let h = dim_hash(self.id.pixel_seed, self.dim);
-        // Power-of-two counts up to 4096 with the count a constant: the
-        // permutation's mask folds and its hash steps that shift every bit
-        // of [0, n) out (xors of zero) vanish. The same permutation.
-        macro_rules! counts {
-            ($($b:literal),*) => {
-                match self.id.count {
-                    $(n if n == 1 << $b => permute(self.id.index, 1 << $b, h as u32),)*
-                    n => permute(self.id.index, n, h as u32),
-                }
-            };
-        }
-        let i = counts!(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12);
+        let i = permute(self.id.index, self.id.count, h as u32);
         // The scramble seeds from the same hash (an odd multiplier is a bijection).
         let g = (h ^ (h >> 32)).wrapping_mul(0xd6e8_feb8_6659_fd93);
         self.dim += 1;
