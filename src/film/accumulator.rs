@@ -1033,6 +1033,29 @@ mod tests {
         Layout { camera: true, splats: false, stokes: false, extra: vec!["A".into()] }
     }
 
+    /// Uniform numbers in [0, 1) from a xorshift stream seeded by `seed`.
+    fn uniforms(mut seed: u64) -> impl FnMut() -> f32 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        }
+    }
+
+    /// One sink of the given extent at every SIMD level this CPU runs.
+    fn sinks_at_every_level(layout: &Layout, x0: i32, y0: i32, width: usize, height: usize) -> Vec<Sink> {
+        SimdLevel::ALL
+            .into_iter()
+            .filter(|l| l.supported())
+            .map(|level| {
+                let mut s = Sink::new(layout, x0, y0, width, height);
+                s.level = level;
+                s
+            })
+            .collect()
+    }
+
     #[test]
     fn fixed_point_rounds_saturates_and_zeroes_nan() {
         assert_eq!(fixed_value(1.0), 1i64 << 32);
@@ -1123,23 +1146,9 @@ mod tests {
             Filter::new(FilterKind::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 }),
             Filter::new(FilterKind::Lanczos { lobes: 3 }),
         ];
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = uniforms(0x2545_f491_4f6c_dd1du64);
         for filter in &filters {
-            let mut sinks: Vec<Sink> = SimdLevel::ALL
-                .into_iter()
-                .filter(|l| l.supported())
-                .map(|level| {
-                    let mut s = Sink::new(&layout, -4, -4, 20, 20);
-                    s.level = level;
-                    s
-                })
-                .collect();
+            let mut sinks = sinks_at_every_level(&layout, -4, -4, 20, 20);
             let mut wide = Sink::new(&layout, -4, -4, 20, 20);
             wide.narrow.clear();
             sinks.push(wide);
@@ -1182,27 +1191,13 @@ mod tests {
             Filter::catmull_rom(),
             Filter::new(FilterKind::Lanczos { lobes: 2 }),
         ];
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut next = uniforms(0x9e37_79b9_7f4a_7c15u64);
         let below_16 = f32::from_bits(16.0f32.to_bits() - 1);
         let special = [16.0, -16.0, below_16, -below_16, 15.999, f32::NAN, f32::INFINITY, -f32::INFINITY, 1e30, 0.0, -0.0, 3.0e9];
         for filter in &filters {
             let mut reference = Sink::new(&layout, -3, -2, 12, 10);
             reference.level = SimdLevel::Baseline;
-            let mut sinks: Vec<Sink> = SimdLevel::ALL
-                .into_iter()
-                .filter(|l| l.supported())
-                .map(|level| {
-                    let mut s = Sink::new(&layout, -3, -2, 12, 10);
-                    s.level = level;
-                    s
-                })
-                .collect();
+            let mut sinks = sinks_at_every_level(&layout, -3, -2, 12, 10);
             let mut batch = Vec::new();
             for round in 0..400 {
                 batch.clear();
