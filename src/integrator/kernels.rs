@@ -23,6 +23,8 @@
 //! | [`diffuse_light_contributions`] | the shading of those samples at a `diffuse` BSDF: the sample's weight, `Diffuse::eval_pdf`, `math::mis_power`, throughput · f · weight · w | the same lanes at a `diffuse` BSDF (not in pass-through scenes) |
 //! | [`diffuse_directions`] | `Diffuse::sample`'s direction and density (`square_to_cosine_hemisphere`), `Frame::to_world`, `SurfaceInteraction::spawn_origin` | paths at a `diffuse` BSDF lit from its front side |
 
+use crate::geometry::Ray;
+use glam::Vec3;
 use crate::geometry::accel::SimdLevel;
 use crate::math::{RAY_EPSILON, SHADOW_EPSILON};
 
@@ -97,6 +99,20 @@ pub struct AreaChunk {
     // still to come).
     pub contrib: [[f32; LANES]; 4],
     pub lit: [bool; LANES],
+}
+
+impl AreaChunk {
+    /// Lane `l`'s shadow ray (the kernels' outputs).
+    #[inline]
+    pub fn shadow_ray(&self, l: usize) -> Ray {
+        Ray { o: lane_vec3(&self.ray_o, l), d: lane_vec3(&self.ray_d, l), tmax: self.tmax[l] }
+    }
+}
+
+/// Lane `l` of a chunk's three coordinate rows.
+#[inline(always)]
+pub fn lane_vec3(a: &[[f32; LANES]; 3], l: usize) -> Vec3 {
+    Vec3::new(a[0][l], a[1][l], a[2][l])
 }
 
 /// Directions towards area lights sampled by area, for the lanes of

@@ -86,7 +86,7 @@
 
 use super::path::PathTracer;
 use crate::bsdf::{BsdfContext, Lobe};
-use super::kernels::{self, AreaChunk, DiffuseChunk, LANES};
+use super::kernels::{self, lane_vec3, AreaChunk, DiffuseChunk, LANES};
 use crate::bsdf::Bsdf;
 use crate::emitter::{constant, Emitter, EmitterSample, ShadingPoint};
 use crate::math::sampling::square_to_uniform_sphere;
@@ -198,8 +198,6 @@ pub struct Queues<S: Spectrum> {
     /// [`kernels::diffuse_light_contributions`] with a contribution: their
     /// shadow rays follow the others in `shadow_ray`.
     lit_lane: Vec<u32>,
-    /// Their shadow rays, gathered from the chunks in the same pass.
-    lit_ray: Vec<Ray>,
     /// Samples of a `constant` environment at `diffuse` BSDFs, for
     /// [`kernels::environment_light_rays`] and
     /// [`kernels::diffuse_light_contributions`]: chunks, each lane's path,
@@ -297,7 +295,6 @@ impl<S: Spectrum> Default for Queues<S> {
             area: Vec::new(),
             area_meta: Vec::with_capacity(BATCH),
             lit_lane: Vec::with_capacity(BATCH),
-            lit_ray: Vec::with_capacity(BATCH),
             env: Vec::new(),
             env_path: Vec::with_capacity(BATCH),
             env_lit: Vec::with_capacity(BATCH),
@@ -651,7 +648,6 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     // route's. The shaded lanes' shadow rays follow, for the lanes with a
     // contribution only.
     q.lit_lane.clear();
-    q.lit_ray.clear();
     if !q.area_meta.is_empty() {
         let used = q.area_meta.len().div_ceil(LANES);
         let level = scene.accel.simd_level();
@@ -659,53 +655,47 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
         if shade_diffuse {
             kernels::diffuse_light_contributions(level, &mut q.area[..used]);
         }
-        // The lanes the kernels shaded, chunk by chunk, straight to their
-        // shadow rays when none is left to the scalar code (the usual case).
         if unshaded == 0 {
+            // Every kernel lane was shaded by the kernels (the usual case):
+            // chunk by chunk, the lit ones straight to their shadow rays.
             let lanes = q.area_meta.len();
             for (c, ch) in q.area[..used].iter().enumerate() {
                 for l in 0..LANES.min(lanes - c * LANES) {
                     if ch.lit[l] {
                         q.lit_lane.push((c * LANES + l) as u32);
-                        q.lit_ray.push(Ray { o: Vec3::new(ch.ray_o[0][l], ch.ray_o[1][l], ch.ray_o[2][l]), d: Vec3::new(ch.ray_d[0][l], ch.ray_d[1][l], ch.ray_d[2][l]), tmax: ch.tmax[l] });
+                        q.shadow_ray.push(ch.shadow_ray(l));
                     }
                 }
             }
-        }
-        // Otherwise lane by lane: the shaded ones to `lit_lane`, the others
-        // weighted and shaded here.
-        let one_by_one = if unshaded == 0 { &q.area_meta[..0] } else { &q.area_meta[..] };
-        for (k, lane) in one_by_one.iter().enumerate() {
-            let (ch, l) = (&q.area[k / LANES], k % LANES);
-            if lane.shade {
-                if ch.lit[l] {
-                    q.lit_lane.push(k as u32);
-                }
-                continue;
-            }
-            if !ch.ok[l] {
-                continue;
-            }
-            let (i, pmf, index) = (lane.path, lane.pmf, lane.emitter);
-            let Emitter::Area(light) = &scene.emitters[index as usize] else { continue };
-            let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
-            let pdf = ch.pdf[l];
-            let radiance: S = light.radiance.eval(&q.wl[i as usize]);
-            let weight = radiance / pdf;
-            let es = EmitterSample { d: v(&ch.d), dist: ch.dist[l], p: Some(v(&ch.target)), n: v(&ch.tri_n), weight: weight / pmf, pdf: pdf * pmf, delta: false };
-            let Some(term) = bsdf_term(scene, &q.si[i as usize], &es, &q.wl[i as usize]) else { continue };
-            q.shadow_path.push(i);
-            q.shadow_sample.push(es);
-            q.shadow_term.push(term);
-            q.shadow_ray.push(Ray { o: v(&ch.ray_o), d: v(&ch.ray_d), tmax: ch.tmax[l] });
-        }
-        if unshaded == 0 {
-            q.shadow_ray.extend_from_slice(&q.lit_ray);
         } else {
+            // Lane by lane: the shaded ones to `lit_lane`, the others
+            // weighted and shaded here; then the lit lanes' shadow rays.
+            for (k, lane) in q.area_meta.iter().enumerate() {
+                let (ch, l) = (&q.area[k / LANES], k % LANES);
+                if lane.shade {
+                    if ch.lit[l] {
+                        q.lit_lane.push(k as u32);
+                    }
+                    continue;
+                }
+                if !ch.ok[l] {
+                    continue;
+                }
+                let (i, pmf, index) = (lane.path, lane.pmf, lane.emitter);
+                let Emitter::Area(light) = &scene.emitters[index as usize] else { continue };
+                let v = |a: &[[f32; LANES]; 3]| lane_vec3(a, l);
+                let pdf = ch.pdf[l];
+                let radiance: S = light.radiance.eval(&q.wl[i as usize]);
+                let weight = radiance / pdf;
+                let es = EmitterSample { d: v(&ch.d), dist: ch.dist[l], p: Some(v(&ch.target)), n: v(&ch.tri_n), weight: weight / pmf, pdf: pdf * pmf, delta: false };
+                let Some(term) = bsdf_term(scene, &q.si[i as usize], &es, &q.wl[i as usize]) else { continue };
+                q.shadow_path.push(i);
+                q.shadow_sample.push(es);
+                q.shadow_term.push(term);
+                q.shadow_ray.push(ch.shadow_ray(l));
+            }
             for &k in &q.lit_lane {
-                let (ch, l) = (&q.area[k as usize / LANES], k as usize % LANES);
-                let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
-                q.shadow_ray.push(Ray { o: v(&ch.ray_o), d: v(&ch.ray_d), tmax: ch.tmax[l] });
+                q.shadow_ray.push(q.area[k as usize / LANES].shadow_ray(k as usize % LANES));
             }
         }
     }
@@ -721,8 +711,7 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
             let (ch, l) = (&q.env[k / LANES], k % LANES);
             if ch.lit[l] {
                 q.env_lit.push(k as u32);
-                let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
-                q.shadow_ray.push(Ray { o: v(&ch.ray_o), d: v(&ch.ray_d), tmax: ch.tmax[l] });
+                q.shadow_ray.push(ch.shadow_ray(l));
             }
         }
     }
@@ -1028,8 +1017,7 @@ fn sample_bsdfs<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut
             if !ch.ok[l] {
                 continue;
             }
-            let v = |a: &[[f32; LANES]; 3]| Vec3::new(a[0][l], a[1][l], a[2][l]);
-            let (pdf, o, d) = (ch.pdf[l], v(&ch.o), v(&ch.d));
+            let (pdf, o, d) = (ch.pdf[l], lane_vec3(&ch.o, l), lane_vec3(&ch.d, l));
             if advance(&mut c, i, weight, 1.0, pdf, Lobe::DIFFUSE_REFLECTION, o, d, rr) {
                 q.next.push(i as u32);
             }
