@@ -61,23 +61,40 @@ impl Shape {
     /// As [`Shape::interaction`], written straight into `out` (the caller's
     /// slot): returned by value, the record was stored in pieces and copied
     /// on in 16-byte loads, which stalled on store forwarding.
+    ///
+    /// A triangle hit without a tangent frame (the common case) is inlined
+    /// into the caller's loop; the other shapes take one out-of-line call.
+    #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     pub fn interaction_into(&self, shape_index: u32, prim: u32, ray_o: Vec3, ray_d: Vec3, t: f32, bary: (f32, f32), out: &mut SurfaceInteraction) {
-        let (p, n, sh_n, uv, bary) = match &self.geometry {
-            ShapeGeometry::Mesh(m) => {
-                let i = prim as usize;
-                let [a, b, c] = m.vertices(i);
-                let e1 = b - a;
-                let e2 = c - a;
-                // Barycentrics from the intersection test, inside the
-                // triangle by construction; clamped against rounding.
-                let (b1, b2) = bary;
-                let (b1, b2) = if b1.is_finite() && b2.is_finite() { (b1.clamp(0.0, 1.0), b2.clamp(0.0, 1.0)) } else { (0.0, 0.0) };
-                let p = a + e1 * b1 + e2 * b2;
-                let n = m.face_normal_at(i, e1, e2);
-                let (sh_n, uv) = m.shading(i, b1, b2, n);
-                (p, n, sh_n, uv, Vec2::new(b1, b2))
+        match &self.geometry {
+            ShapeGeometry::Mesh(m) if !self.tangent_frame => {
+                let (p, n, sh_n, uv, bary) = mesh_hit(m, prim, bary);
+                let frame = Frame::from_normal(sh_n);
+                *out = SurfaceInteraction {
+                    p,
+                    t,
+                    n,
+                    frame,
+                    uv,
+                    dp_du: Vec3::ZERO,
+                    dp_dv: Vec3::ZERO,
+                    shape: shape_index,
+                    prim,
+                    bary,
+                    wi: frame.to_local(-ray_d),
+                };
             }
+            _ => self.interaction_general_into(shape_index, prim, ray_o, ray_d, t, bary, out),
+        }
+    }
+
+    /// [`Shape::interaction_into`] for every shape and frame.
+    #[inline(never)]
+    #[allow(clippy::too_many_arguments)]
+    fn interaction_general_into(&self, shape_index: u32, prim: u32, ray_o: Vec3, ray_d: Vec3, t: f32, bary: (f32, f32), out: &mut SurfaceInteraction) {
+        let (p, n, sh_n, uv, bary) = match &self.geometry {
+            ShapeGeometry::Mesh(m) => mesh_hit(m, prim, bary),
             ShapeGeometry::Sphere(s) => {
                 let p = ray_o + ray_d * t;
                 // Project onto the surface to remove the error of o + t·d.
@@ -217,4 +234,23 @@ impl Shape {
         }
         area_pdf_to_solid_angle(p, hit, n, self.area())
     }
+}
+
+/// A triangle hit's point, geometric normal, shading normal, texture
+/// coordinates and barycentrics, from the barycentrics (b1, b2) the
+/// intersection test reported.
+#[inline(always)]
+fn mesh_hit(m: &Mesh, prim: u32, bary: (f32, f32)) -> (Vec3, Vec3, Vec3, Vec2, Vec2) {
+    let i = prim as usize;
+    let [a, b, c] = m.vertices(i);
+    let e1 = b - a;
+    let e2 = c - a;
+    // Barycentrics from the intersection test, inside the triangle by
+    // construction; clamped against rounding.
+    let (b1, b2) = bary;
+    let (b1, b2) = if b1.is_finite() && b2.is_finite() { (b1.clamp(0.0, 1.0), b2.clamp(0.0, 1.0)) } else { (0.0, 0.0) };
+    let p = a + e1 * b1 + e2 * b2;
+    let n = m.face_normal_at(i, e1, e2);
+    let (sh_n, uv) = m.shading(i, b1, b2, n);
+    (p, n, sh_n, uv, Vec2::new(b1, b2))
 }
