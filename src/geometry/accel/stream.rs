@@ -362,7 +362,9 @@ impl Accel {
         // first needs them (the mask `made`).
         let mut rd: [MaybeUninit<RayData<V>>; RAYS] = [const { MaybeUninit::uninit() }; RAYS];
         let mut made = 0u32;
-        let mut stack = [(0u32, 0u32); STACK];
+        // Pending nodes and the rays entering each; uninitialised (zeroing
+        // its 2 KB cost a `memset` a packet).
+        let mut stack: [MaybeUninit<(u32, u32)>; STACK] = [const { MaybeUninit::uninit() }; STACK];
         let mut sp = 0usize;
         let (mut cur, mut active) = (0u32, all);
         // The rays in lanes, made when a leaf first needs them (most
@@ -431,7 +433,7 @@ impl Accel {
                         None => first = Some((child, enter)),
                         Some(_) => {
                             self.prefetch(child);
-                            stack[sp] = (child, enter);
+                            stack[sp].write((child, enter));
                             sp += 1;
                         }
                     }
@@ -448,7 +450,8 @@ impl Accel {
                     return blocked;
                 }
                 sp -= 1;
-                let (c, m) = stack[sp];
+                // SAFETY: entries below `sp` were written before.
+                let (c, m) = unsafe { stack[sp].assume_init() };
                 let m = m & !blocked;
                 if m != 0 {
                     (cur, active) = (c, m);
