@@ -430,15 +430,16 @@ struct RayData<V> {
     oinv_f: [V; 3],
     /// Byte offsets into `Node::b` of the near planes (x, y, z) then the
     /// far planes: `OCTANT_ROWS` of the ray's octant. Offsets rather than
-    /// row numbers: a node visit loads its six rows without scaling them.
-    rows: [u32; 6],
+    /// row numbers: a node visit loads its six rows without scaling them;
+    /// the table's row rather than a copy: a ray's setup copies nothing.
+    rows: &'static [u32; 6],
 }
 
 /// Per direction octant (bit a set: the ray runs towards −axis a), the
 /// byte offsets into `Node::b` of the near then far planes on x, y, z:
 /// the minimum (row a) is near where the ray runs towards +axis, the
 /// maximum (row 3 + a) where it runs towards −axis.
-const OCTANT_ROWS: [[u32; 6]; 8] = {
+static OCTANT_ROWS: [[u32; 6]; 8] = {
     let row = std::mem::size_of::<[f32; WIDTH]>() as u32;
     let mut t = [[0u32; 6]; 8];
     let mut oct = 0;
@@ -481,7 +482,7 @@ impl<V: Lanes> RayData<V> {
             oinv_n: s(oinv_n),
             oinv_f: s(oinv_f),
             // (`& 7`: a 3-bit mask; lets the index go unchecked.)
-            rows: OCTANT_ROWS[octant & 7],
+            rows: &OCTANT_ROWS[octant & 7],
         }
     }
 
@@ -489,7 +490,7 @@ impl<V: Lanes> RayData<V> {
     /// enters within [0, tmax].
     #[inline(always)]
     fn slab(&self, node: &Node, tmax: f32) -> (V, u32) {
-        let r = &self.rows;
+        let r = self.rows;
         let [nx, ny, nz, fx, fy, fz]: [V; 6] = [row(node, r[0]), row(node, r[1]), row(node, r[2]), row(node, r[3]), row(node, r[4]), row(node, r[5])];
         let tnx = nx.mul_sub(self.inv[0], self.oinv_n[0]);
         let tny = ny.mul_sub(self.inv[1], self.oinv_n[1]);
