@@ -372,7 +372,14 @@ fn prim_geom(shape: &Shape, prim: usize) -> (PrimGeom, Aabb) {
 }
 
 /// Hit distance (infinite on a miss) and, for triangles, barycentrics.
-#[inline(always)]
+///
+/// Never inlined: in the traversal's leaves the compiler hoisted this
+/// test's per-ray terms (the direction's squared length in f64 for the
+/// sphere, its lanes for the others) out of the node loop, into every
+/// ray's setup and its register spills, whether or not the scene has any
+/// such primitive. A call where one is met costs less. (Plain IEEE
+/// operations without fused multiply-adds: the same bits however compiled.)
+#[inline(never)]
 fn intersect_prim_bary(g: &PrimGeom, o: Vec3A, d: Vec3A, tmax: f32) -> (f32, f32, f32) {
     const MISS: (f32, f32, f32) = (f32::INFINITY, 0.0, 0.0);
     match g {
@@ -421,10 +428,33 @@ struct RayData<V> {
     inv: [V; 3],
     oinv_n: [V; 3],
     oinv_f: [V; 3],
-    /// Index into `Node::b` of the near and far plane on each axis.
-    near: [usize; 3],
-    far: [usize; 3],
+    /// Byte offsets into `Node::b` of the near planes (x, y, z) then the
+    /// far planes: `OCTANT_ROWS` of the ray's octant. Offsets rather than
+    /// row numbers: a node visit loads its six rows without scaling them;
+    /// the table's row rather than a copy: a ray's setup copies nothing.
+    rows: &'static [u32; 6],
 }
+
+/// Per direction octant (bit a set: the ray runs towards −axis a), the
+/// byte offsets into `Node::b` of the near then far planes on x, y, z:
+/// the minimum (row a) is near where the ray runs towards +axis, the
+/// maximum (row 3 + a) where it runs towards −axis.
+static OCTANT_ROWS: [[u32; 6]; 8] = {
+    let row = std::mem::size_of::<[f32; WIDTH]>() as u32;
+    let mut t = [[0u32; 6]; 8];
+    let mut oct = 0;
+    while oct < 8 {
+        let mut a = 0;
+        while a < 3 {
+            let neg = (oct >> a) as u32 & 1;
+            t[oct][a] = (a as u32 + 3 * neg) * row;
+            t[oct][3 + a] = (a as u32 + 3 * (1 - neg)) * row;
+            a += 1;
+        }
+        oct += 1;
+    }
+    t
+};
 
 /// 2⁻²¹: covers the relative rounding of 1/d and of the slab FMAs.
 const REL: f32 = 4.0 * f32::EPSILON;
@@ -441,8 +471,7 @@ impl<V: Lanes> RayData<V> {
         let oinv = o * inv;
         let err = oinv.abs() * REL;
         let (oinv_n, oinv_f) = (oinv + err, oinv - err);
-        let neg = inv.cmplt(Vec3A::ZERO).bitmask() as usize;
-        let (nx, ny, nz) = (neg & 1, (neg >> 1) & 1, neg >> 2);
+        let octant = inv.cmplt(Vec3A::ZERO).bitmask() as usize;
         let s = |v: Vec3A| [V::splat(v.x), V::splat(v.y), V::splat(v.z)];
         RayData {
             o,
@@ -452,8 +481,8 @@ impl<V: Lanes> RayData<V> {
             inv: s(inv),
             oinv_n: s(oinv_n),
             oinv_f: s(oinv_f),
-            near: [3 * nx, 1 + 3 * ny, 2 + 3 * nz],
-            far: [3 - 3 * nx, 4 - 3 * ny, 5 - 3 * nz],
+            // (`& 7`: a 3-bit mask; lets the index go unchecked.)
+            rows: &OCTANT_ROWS[octant & 7],
         }
     }
 
@@ -461,17 +490,8 @@ impl<V: Lanes> RayData<V> {
     /// enters within [0, tmax].
     #[inline(always)]
     fn slab(&self, node: &Node, tmax: f32) -> (V, u32) {
-        // SAFETY: `near` and `far` hold indices in 0..6 by construction.
-        let (nx, ny, nz, fx, fy, fz) = unsafe {
-            (
-                V::load(node.b.get_unchecked(self.near[0])),
-                V::load(node.b.get_unchecked(self.near[1])),
-                V::load(node.b.get_unchecked(self.near[2])),
-                V::load(node.b.get_unchecked(self.far[0])),
-                V::load(node.b.get_unchecked(self.far[1])),
-                V::load(node.b.get_unchecked(self.far[2])),
-            )
-        };
+        let r = self.rows;
+        let [nx, ny, nz, fx, fy, fz]: [V; 6] = [row(node, r[0]), row(node, r[1]), row(node, r[2]), row(node, r[3]), row(node, r[4]), row(node, r[5])];
         let tnx = nx.mul_sub(self.inv[0], self.oinv_n[0]);
         let tny = ny.mul_sub(self.inv[1], self.oinv_n[1]);
         let tnz = nz.mul_sub(self.inv[2], self.oinv_n[2]);
@@ -496,6 +516,16 @@ impl<V: Lanes> RayData<V> {
     fn triangles<const LOOSE: bool>(&self, p: &TriPacket<V>, tmax: f32) -> ([V; 4], u32) {
         moller_trumbore::<LOOSE, V>(&self.o8, &self.d8, p, V::splat(tmax))
     }
+}
+
+/// The row of `node`'s boxes at byte offset `offset`, one of `OCTANT_ROWS`.
+/// (A function, not a closure: closures are compiled without the caller's
+/// target features and were not always inlined.)
+#[inline(always)]
+fn row<V: Lanes>(node: &Node, offset: u32) -> V {
+    debug_assert!(offset as usize % std::mem::size_of::<[f32; WIDTH]>() == 0 && (offset as usize) < std::mem::size_of_val(&node.b));
+    // SAFETY: `OCTANT_ROWS` holds offsets of whole rows of `b` only.
+    V::load(unsafe { &*((node.b.as_ptr() as *const u8).add(offset as usize) as *const [f32; WIDTH]) })
 }
 
 /// Möller–Trumbore lane by lane (see `RayData::triangles`): lane k tests
@@ -1254,6 +1284,10 @@ impl Accel {
                         let i = m.trailing_zeros() as usize;
                         m &= m - 1;
                         let key = (t[i].to_bits() as u64) << 32 | children[i] as u64;
+                        // SAFETY: `k` counts the bits of `mask` taken so far,
+                        // and `mask` has one bit per child. (Lets the sort
+                        // below go without bounds checks.)
+                        unsafe { std::hint::assert_unchecked(k < WIDTH) };
                         // Insertion sort, descending.
                         let mut j = k;
                         while j > 0 && keys[j - 1] < key {

@@ -136,15 +136,19 @@ impl<V: Lanes> RayData<V> {
     pub(super) fn slab_q(&self, node: &QNode, tmax: f32) -> (V, u32) {
         let s = [V::splat(pow2(node.exp[0])), V::splat(pow2(node.exp[1])), V::splat(pow2(node.exp[2]))];
         let o = [V::splat(node.origin[0]), V::splat(node.origin[1]), V::splat(node.origin[2])];
-        // SAFETY: `near` and `far` hold indices in 0..6 by construction.
-        let row = |r: usize| V::from_u8(unsafe { node.q.get_unchecked(r) });
-        let plane = |r: usize, a: usize| row(r).mul_add(s[a], o[a]);
-        let tnx = plane(self.near[0], 0).mul_sub(self.inv[0], self.oinv_n[0]);
-        let tny = plane(self.near[1], 1).mul_sub(self.inv[1], self.oinv_n[1]);
-        let tnz = plane(self.near[2], 2).mul_sub(self.inv[2], self.oinv_n[2]);
-        let tfx = plane(self.far[0], 0).mul_sub(self.inv[0], self.oinv_f[0]);
-        let tfy = plane(self.far[1], 1).mul_sub(self.inv[1], self.oinv_f[1]);
-        let tfz = plane(self.far[2], 2).mul_sub(self.inv[2], self.oinv_f[2]);
+        // `rows` holds byte offsets of rows of f32 (`Node::b`); the same
+        // rows of u8 lie at a quarter of them.
+        const _: () = assert!(std::mem::size_of::<[f32; WIDTH]>() == 4 * std::mem::size_of::<[u8; WIDTH]>());
+        let q = node.q.as_ptr() as *const u8;
+        // SAFETY: `rows` holds offsets of whole rows of the six (`OCTANT_ROWS`).
+        let row = |i: usize| V::from_u8(unsafe { &*(q.add(self.rows[i] as usize / 4) as *const [u8; WIDTH]) });
+        let plane = |i: usize, a: usize| row(i).mul_add(s[a], o[a]);
+        let tnx = plane(0, 0).mul_sub(self.inv[0], self.oinv_n[0]);
+        let tny = plane(1, 1).mul_sub(self.inv[1], self.oinv_n[1]);
+        let tnz = plane(2, 2).mul_sub(self.inv[2], self.oinv_n[2]);
+        let tfx = plane(3, 0).mul_sub(self.inv[0], self.oinv_f[0]);
+        let tfy = plane(4, 1).mul_sub(self.inv[1], self.oinv_f[1]);
+        let tfz = plane(5, 2).mul_sub(self.inv[2], self.oinv_f[2]);
         let tnear = tnx.max(tny).max(tnz.max(V::splat(0.0)));
         let tfar = tfx.min(tfy).min(tfz.min(V::splat(tmax)));
         (tnear, tnear.le(tfar * V::splat(super::FAR)).bitmask() & node.valid as u32)

@@ -62,22 +62,27 @@ struct PacketSlabs<V> {
 }
 
 impl<V: Lanes> PacketSlabs<V> {
+    /// The constants of the packet's rays (`p`), all lanes at once, by
+    /// `RayData::new`'s operations lane by lane (each exact in IEEE
+    /// arithmetic: the same bits as ray by ray, which cost 8 scalar setups
+    /// and their transposition).
     #[inline(always)]
-    fn new(rays: &[Ray]) -> Self {
-        let (mut inv, mut oinv_n, mut oinv_f) = ([[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3], [[0.0f32; RAYS]; 3]);
-        for k in 0..rays.len() {
-            let (i, on, of) = slab_constants(&rays[k]);
-            for a in 0..3 {
-                inv[a][k] = i[a];
-                oinv_n[a][k] = on[a];
-                oinv_f[a][k] = of[a];
-            }
+    fn new(p: &PacketRays<V>) -> Self {
+        let (zero, tiny, rel) = (V::splat(0.0), V::splat(1e-20), V::splat(super::REL));
+        let (mut inv, mut oinv_n, mut oinv_f, mut neg) = ([zero; 3], [zero; 3], [zero; 3], [zero; 3]);
+        for a in 0..3 {
+            let d = p.d[a];
+            let sign = d.sign();
+            // |d| < tiny: tiny with d's sign, else d (as `Vec3A::select`).
+            let small = d.xor(sign).lt(tiny);
+            let d_safe = d.xor(tiny.xor(sign).xor(d) & small);
+            inv[a] = V::splat(1.0) / d_safe;
+            let oinv = p.o[a] * inv[a];
+            let err = oinv.xor(oinv.sign()) * rel;
+            oinv_n[a] = oinv + err;
+            oinv_f[a] = oinv - err;
+            neg[a] = inv[a].lt(zero);
         }
-        let inv = [V::from_array(inv[0]), V::from_array(inv[1]), V::from_array(inv[2])];
-        let oinv_n = [V::from_array(oinv_n[0]), V::from_array(oinv_n[1]), V::from_array(oinv_n[2])];
-        let oinv_f = [V::from_array(oinv_f[0]), V::from_array(oinv_f[1]), V::from_array(oinv_f[2])];
-        let zero = V::splat(0.0);
-        let neg = [inv[0].lt(zero), inv[1].lt(zero), inv[2].lt(zero)];
         PacketSlabs { inv, oinv_n, oinv_f, neg }
     }
 
@@ -160,7 +165,8 @@ impl Accel {
     #[inline(always)]
     fn closest_packet<V: Lanes>(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         let n = rays.len();
-        let slabs = PacketSlabs::<V>::new(rays);
+        let lanes = PacketRays::<V>::new(rays);
+        let slabs = PacketSlabs::new(&lanes);
         let mut reach = [-1.0f32; RAYS];
         let mut best = [Closest::new(-1.0, 0); RAYS];
         let mut dsum = Vec3A::ZERO;
@@ -173,7 +179,6 @@ impl Accel {
             reach[k] = best[k].reach();
             dsum += Vec3A::from(rays[k].d);
         }
-        let lanes = PacketRays::<V>::new(rays);
         let mut reach_v = V::from_array(reach);
         let zero = V::splat(0.0);
         let far = V::splat(super::FAR);
@@ -347,7 +352,8 @@ impl Accel {
     #[inline(always)]
     fn occluded_packet<V: Lanes>(&self, rays: &[Ray]) -> u32 {
         let n = rays.len();
-        let slabs = PacketSlabs::<V>::new(rays);
+        let lanes = PacketRays::<V>::new(rays);
+        let slabs = PacketSlabs::new(&lanes);
         let mut tmax = [-1.0f32; RAYS];
         for k in 0..n {
             tmax[k] = rays[k].tmax;
@@ -362,24 +368,16 @@ impl Accel {
         // first needs them (the mask `made`).
         let mut rd: [MaybeUninit<RayData<V>>; RAYS] = [const { MaybeUninit::uninit() }; RAYS];
         let mut made = 0u32;
-        let mut stack = [(0u32, 0u32); STACK];
+        // Pending nodes and the rays entering each; uninitialised (zeroing
+        // its 2 KB cost a `memset` a packet).
+        let mut stack: [MaybeUninit<(u32, u32)>; STACK] = [const { MaybeUninit::uninit() }; STACK];
         let mut sp = 0usize;
         let (mut cur, mut active) = (0u32, all);
-        // The rays in lanes, made when a leaf first needs them (most
-        // shadow packets in a big BVH reach no leaf with enough rays).
-        let mut lanes: MaybeUninit<PacketRays<V>> = MaybeUninit::uninit();
-        let mut lanes_made = false;
         loop {
             if cur & (LEAF | DIRECT) == LEAF | DIRECT && splat_leaf(active, cur) {
                 // Triangles alone, reached by at least half as many rays
                 // as it holds: each triangle against all rays at once.
-                if !lanes_made {
-                    lanes.write(PacketRays::<V>::new(rays));
-                    lanes_made = true;
-                }
-                // SAFETY: written just above or before (`lanes_made`).
-                let lanes = unsafe { lanes.assume_init_ref() };
-                blocked |= self.direct_leaf_occludes_rays::<V>(cur, lanes, tmax, active);
+                blocked |= self.direct_leaf_occludes_rays::<V>(cur, &lanes, tmax, active);
                 if blocked == all {
                     return blocked;
                 }
@@ -431,7 +429,7 @@ impl Accel {
                         None => first = Some((child, enter)),
                         Some(_) => {
                             self.prefetch(child);
-                            stack[sp] = (child, enter);
+                            stack[sp].write((child, enter));
                             sp += 1;
                         }
                     }
@@ -448,7 +446,8 @@ impl Accel {
                     return blocked;
                 }
                 sp -= 1;
-                let (c, m) = stack[sp];
+                // SAFETY: entries below `sp` were written before.
+                let (c, m) = unsafe { stack[sp].assume_init() };
                 let m = m & !blocked;
                 if m != 0 {
                     (cur, active) = (c, m);
@@ -641,20 +640,6 @@ const DEFAULT_PACKET_MIN: u32 = 4;
 fn packets_off() -> bool {
     static OFF: OnceLock<bool> = OnceLock::new();
     *OFF.get_or_init(|| std::env::var("SNELL_PACKETS").is_ok_and(|v| v == "0"))
-}
-
-/// The inverse direction and the two origin offsets of the slab test, as
-/// `RayData::new` computes them (the same operations, so the same bits).
-#[inline(always)]
-fn slab_constants(ray: &Ray) -> (Vec3A, Vec3A, Vec3A) {
-    let o = Vec3A::from(ray.o);
-    let d = Vec3A::from(ray.d);
-    let tiny = Vec3A::splat(1e-20);
-    let d_safe = Vec3A::select(d.abs().cmplt(tiny), tiny.copysign(d), d);
-    let inv = Vec3A::ONE / d_safe;
-    let oinv = o * inv;
-    let err = oinv.abs() * super::REL;
-    (inv, oinv + err, oinv - err)
 }
 
 #[cfg(test)]
