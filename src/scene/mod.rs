@@ -89,7 +89,7 @@ impl Scene {
 
     /// The full interaction at a hit the accelerator found along `ray`
     /// (moved to world space for a shape placed by an instance), into `out`.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn interaction_into(&self, hit: &crate::geometry::accel::Hit, ray: &Ray, out: &mut SurfaceInteraction) {
         let shape = &self.shapes[hit.shape as usize];
         if hit.instance != crate::geometry::accel::NO_INSTANCE {
