@@ -225,6 +225,34 @@ impl PixelSamples {
         self.start_patterned(index)
     }
 
+    /// Starts sample `index` of this pixel, takes its first draws as a
+    /// camera sample does (the wavelength draw if `spectral`, else its
+    /// skip; then the position in the pixel) and pushes the sampler onto
+    /// `out`. Returns the wavelength draw (0 without it) and the position.
+    ///
+    /// The same draws as [`PixelSamples::start`] followed by
+    /// [`Sampler::next_1d`] or [`Sampler::skip_1d`] and
+    /// [`Sampler::next_2d`]; for the default sampler its state stays in
+    /// registers through them and is written into `out` once (a `Sampler`
+    /// drawn from on the stack and copied in after was written with 8-byte
+    /// stores and read back with 16-byte loads: a store-forwarding stall
+    /// per sample).
+    #[inline(always)]
+    pub fn start_camera_into(&self, index: u32, spectral: bool, out: &mut Vec<Sampler>) -> (f32, Vec2) {
+        if let SamplerKind::Independent = self.spec.kind {
+            let mut s = independent::Independent::start(self.pixel, index);
+            let u = if spectral { s.next_1d() } else { s.skip_1d(); 0.0 };
+            let pos = s.next_2d();
+            out.push(Sampler { method: Method::Independent(s) });
+            return (u, pos);
+        }
+        let mut s = self.start_patterned(index);
+        let u = if spectral { s.next_1d() } else { s.skip_1d(); 0.0 };
+        let pos = s.next_2d();
+        out.push(s);
+        (u, pos)
+    }
+
     #[inline(never)]
     fn start_patterned(&self, index: u32) -> Sampler {
         let (spec, count, x, y) = (&self.spec, self.count, self.x, self.y);
