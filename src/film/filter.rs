@@ -222,7 +222,7 @@ impl Filter {
         let i = _mm256_cvttps_epi32(_mm256_and_ps(f, inside));
         let t = _mm256_sub_ps(f, _mm256_cvtepi32_ps(i));
         // 0 ≤ i < LUT − 1 already (f ≥ 0; outside lanes read entry 0): the
-        // `min`, as `lookup4`'s, bounds the gathers by the table's size.
+        // `min`, as `lookup4`'s, bounds the loads by the table's size.
         let i = _mm256_min_epi32(i, _mm256_set1_epi32((LUT - 2) as i32));
         // The eight entries (a, b) read as 64-bit loads, not by gathers:
         // AMD's Zen cores (and Intel's since the gather-data-sampling

@@ -706,6 +706,42 @@ mod set_dimension_tests {
         }
     }
 
+    /// `start_camera_into` draws what `start` and the camera's first draws
+    /// give, and pushes a sampler that goes on as that one does, for every
+    /// sampler, with and without the wavelength draw.
+    #[test]
+    fn start_camera_into_is_start_and_the_first_draws() {
+        let kinds = [
+            SamplerKind::Independent,
+            SamplerKind::Stratified { jitter: true, dimension: 3 },
+            SamplerKind::Multijitter { jitter: true },
+            SamplerKind::Orthogonal { jitter: true, strength: 2 },
+            SamplerKind::LdSampler { dimension: 4 },
+            SamplerKind::Sobol,
+            SamplerKind::ZSobol { log2_res: 0 },
+        ];
+        for kind in kinds {
+            let spec = spec(kind, 16, 3);
+            let pixel = PixelSamples::new(&spec, 5, 7);
+            for spectral in [false, true] {
+                let mut queue = vec![];
+                for index in [0, 5, 16, 40] {
+                    let mut want = pixel.start(index);
+                    let u = if spectral { want.next_1d() } else { want.skip_1d(); 0.0 };
+                    let pos = want.next_2d();
+                    let (got_u, got_pos) = pixel.start_camera_into(index, spectral, &mut queue);
+                    assert_eq!((got_u.to_bits(), got_pos), (u.to_bits(), pos), "{}: sample {index}", kind.name());
+                    let Some(got) = queue.last_mut() else { panic!("nothing pushed") };
+                    for d in 0..6 {
+                        assert_eq!(got.next_2d(), want.next_2d(), "{}: sample {index}, draw {d}", kind.name());
+                        assert_eq!(got.next_1d().to_bits(), want.next_1d().to_bits(), "{}: sample {index}, draw {d}", kind.name());
+                    }
+                }
+                assert_eq!(queue.len(), 4);
+            }
+        }
+    }
+
     /// After `set_dimension(d)` a sample draws what a fresh one draws after
     /// d draws, for every sampler (`independent` just goes on).
     #[test]
