@@ -852,10 +852,13 @@ impl FilmState {
         let stride = layout.stride();
         let pixels_n = w as usize * ht as usize;
         let px = |i: usize| &self.data[i * stride..(i + 1) * stride];
+        // unfixed(weight) > 1e-9, without a second conversion and division:
+        // dividing by 2^52 is exact, so it is the same test.
+        let least = 1e-9 * SCALE;
         let normalize = |sum: &[i128], weight: i128| {
             let wf = wide_to_f64(weight);
             let v = Rgb::new((wide_to_f64(sum[0]) / wf) as f32, (wide_to_f64(sum[1]) / wf) as f32, (wide_to_f64(sum[2]) / wf) as f32);
-            if unfixed(weight) > 1e-9 && v.is_finite() { v } else { Rgb::BLACK }
+            if wf > least && v.is_finite() { v } else { Rgb::BLACK }
         };
         let paths = h.samples_taken.max(1) as f64;
         let pixels = (0..pixels_n)

@@ -368,16 +368,11 @@ fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u3
         if pixel.pixel().0 != x + ox {
             pixel = PixelSamples::new(&scene.sampler, x + ox, y + oy);
         }
-        let mut sampler = pixel.start(index);
         // RGB paths carry no wavelengths and cannot use the draw: skip it
         // (the sample's later draws stay the same).
-        let wl = if S::SPECTRAL {
-            S::sample_wavelengths(sampler.next_1d())
-        } else {
-            sampler.skip_1d();
-            S::sample_wavelengths(0.0)
-        };
-        let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+        let (u, jitter) = pixel.start_camera_into(index, S::SPECTRAL, &mut q.sampler);
+        let wl = S::sample_wavelengths(u);
+        let pos = Vec2::new(x as f32, y as f32) + jitter;
         let film = (pos + offset) * cam.inv_size;
         match pinhole {
             Some(camera) => {
@@ -390,9 +385,11 @@ fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u3
                     lanes = 0;
                 }
             }
-            None => q.ray.push(scene.camera.sample_ray(film, &mut sampler)),
+            None => {
+                let k = q.sampler.len() - 1;
+                q.ray.push(scene.camera.sample_ray(film, &mut q.sampler[k]));
+            }
         }
-        q.sampler.push(sampler);
         q.wl.push(wl);
         q.pos.push(pos);
     }

@@ -225,6 +225,34 @@ impl PixelSamples {
         self.start_patterned(index)
     }
 
+    /// Starts sample `index` of this pixel, takes its first draws as a
+    /// camera sample does (the wavelength draw if `spectral`, else its
+    /// skip; then the position in the pixel) and pushes the sampler onto
+    /// `out`. Returns the wavelength draw (0 without it) and the position.
+    ///
+    /// The same draws as [`PixelSamples::start`] followed by
+    /// [`Sampler::next_1d`] or [`Sampler::skip_1d`] and
+    /// [`Sampler::next_2d`]; for the default sampler its state stays in
+    /// registers through them and is written into `out` once (a `Sampler`
+    /// drawn from on the stack and copied in after was written with 8-byte
+    /// stores and read back with 16-byte loads: a store-forwarding stall
+    /// per sample).
+    #[inline(always)]
+    pub fn start_camera_into(&self, index: u32, spectral: bool, out: &mut Vec<Sampler>) -> (f32, Vec2) {
+        if let SamplerKind::Independent = self.spec.kind {
+            let mut s = independent::Independent::start(self.pixel, index);
+            let u = if spectral { s.next_1d() } else { s.skip_1d(); 0.0 };
+            let pos = s.next_2d();
+            out.push(Sampler { method: Method::Independent(s) });
+            return (u, pos);
+        }
+        let mut s = self.start_patterned(index);
+        let u = if spectral { s.next_1d() } else { s.skip_1d(); 0.0 };
+        let pos = s.next_2d();
+        out.push(s);
+        (u, pos)
+    }
+
     #[inline(never)]
     fn start_patterned(&self, index: u32) -> Sampler {
         let (spec, count, x, y) = (&self.spec, self.count, self.x, self.y);
@@ -674,6 +702,42 @@ mod set_dimension_tests {
                         assert_eq!(drawn.next_1d(), skipped.next_1d(), "{}: draw {d}", kind.name());
                     }
                 }
+            }
+        }
+    }
+
+    /// `start_camera_into` draws what `start` and the camera's first draws
+    /// give, and pushes a sampler that goes on as that one does, for every
+    /// sampler, with and without the wavelength draw.
+    #[test]
+    fn start_camera_into_is_start_and_the_first_draws() {
+        let kinds = [
+            SamplerKind::Independent,
+            SamplerKind::Stratified { jitter: true, dimension: 3 },
+            SamplerKind::Multijitter { jitter: true },
+            SamplerKind::Orthogonal { jitter: true, strength: 2 },
+            SamplerKind::LdSampler { dimension: 4 },
+            SamplerKind::Sobol,
+            SamplerKind::ZSobol { log2_res: 0 },
+        ];
+        for kind in kinds {
+            let spec = spec(kind, 16, 3);
+            let pixel = PixelSamples::new(&spec, 5, 7);
+            for spectral in [false, true] {
+                let mut queue = vec![];
+                for index in [0, 5, 16, 40] {
+                    let mut want = pixel.start(index);
+                    let u = if spectral { want.next_1d() } else { want.skip_1d(); 0.0 };
+                    let pos = want.next_2d();
+                    let (got_u, got_pos) = pixel.start_camera_into(index, spectral, &mut queue);
+                    assert_eq!((got_u.to_bits(), got_pos), (u.to_bits(), pos), "{}: sample {index}", kind.name());
+                    let Some(got) = queue.last_mut() else { panic!("nothing pushed") };
+                    for d in 0..6 {
+                        assert_eq!(got.next_2d(), want.next_2d(), "{}: sample {index}, draw {d}", kind.name());
+                        assert_eq!(got.next_1d().to_bits(), want.next_1d().to_bits(), "{}: sample {index}, draw {d}", kind.name());
+                    }
+                }
+                assert_eq!(queue.len(), 4);
             }
         }
     }
