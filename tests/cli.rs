@@ -350,7 +350,7 @@ fn adaptive_sampling() {
     assert!(e.contains("no resumable state") && e.contains("adaptive"), "{e}");
     for (args, want) in [
         (&["--noise-threshold", "0"][..], "positive"),
-        (&["--noise-threshold", "-1"], "positive"),
+        (&["--noise-threshold=-1"], "positive"),
         (&["--noise-threshold", "0.05", "--min-spp", "128"], "above the render's 64"),
         (&["--noise-threshold", "0.05", "--min-spp", "0"], "at least 1"),
         (&["--noise-threshold", "0.05", "--passes", "3"], "leave out --passes"),
