@@ -120,6 +120,26 @@ struct RenderArgs {
     /// is given.
     #[arg(long, value_name = "OUT.exr")]
     resume: Option<PathBuf>,
+    /// Adaptive sampling: a pixel stops taking samples once its estimated
+    /// relative standard error (over √(value² + 0.01), so below 0.1 the
+    /// absolute error; from its own samples and its 3 × 3 neighbours') is
+    /// below this, e.g. 0.02; --spp is then the most a pixel gets. Renders
+    /// in rounds (--min-spp for every pixel, then doubling for the pixels
+    /// still noisy); the EXR gets a channel `spp`, each pixel's samples.
+    /// Camera-path integrators only; not with --passes, --write-every or
+    /// --resume.
+    #[arg(long, value_name = "T")]
+    noise_threshold: Option<f64>,
+    /// With --noise-threshold: the samples every pixel gets before the
+    /// first decision (default: --spp / 8, at least 16).
+    #[arg(long, value_name = "N", requires = "noise_threshold")]
+    min_spp: Option<u32>,
+}
+
+impl RenderArgs {
+    fn threshold_invalid(&self) -> bool {
+        self.noise_threshold.is_some_and(|t| !(t.is_finite() && t > 0.0))
+    }
 }
 
 /// Passes of a command-line render unless --passes says otherwise: the
@@ -205,6 +225,8 @@ fn default_render() -> anyhow::Result<RenderArgs> {
         passes: None,
         write_every: None,
         resume: None,
+        noise_threshold: None,
+        min_spp: None,
     })
 }
 
@@ -286,6 +308,25 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     if args.passes == Some(0) {
         anyhow::bail!("--passes must be at least 1");
     }
+    let adaptive = args.noise_threshold.map(|threshold| crate::render::Adaptive { threshold, min_spp: args.min_spp.unwrap_or(0) });
+    if adaptive.is_some() {
+        // Its rounds are its passes; its pixels end with different sample
+        // counts, which a checkpoint's film state does not record.
+        if args.passes.is_some() {
+            anyhow::bail!("--noise-threshold renders in its own rounds (--min-spp, then doubling): leave out --passes");
+        }
+        if args.write_every.is_some() || args.resume.is_some() {
+            anyhow::bail!(
+                "--noise-threshold cannot be combined with --write-every or --resume: an adaptive render's pixels hold different sample counts, which a checkpoint does not record"
+            );
+        }
+        if args.threshold_invalid() {
+            anyhow::bail!("--noise-threshold {}: expected a positive relative error such as 0.02", args.noise_threshold.unwrap_or(0.0));
+        }
+        if args.min_spp == Some(0) {
+            anyhow::bail!("--min-spp must be at least 1");
+        }
+    }
     if let Some(s) = args.write_every.filter(|s| !(s.is_finite() && *s >= 0.0)) {
         anyhow::bail!("--write-every {s}: expected a number of seconds, 0 or more");
     }
@@ -355,10 +396,18 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         },
         None => None,
     };
-    let passes = args.passes.unwrap_or(if preview.is_some() { crate::preview::default_passes(scene.sampler.sample_count) } else { DEFAULT_PASSES });
-    let render_options = RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()), passes, ..RenderOptions::default() };
+    let passes = if adaptive.is_some() {
+        1
+    } else {
+        args.passes.unwrap_or(if preview.is_some() { crate::preview::default_passes(scene.sampler.sample_count) } else { DEFAULT_PASSES })
+    };
+    if let Some(a) = &adaptive {
+        // The option errors (min above spp) before the render starts.
+        a.min_spp_of(scene.sampler.sample_count).map_err(|e| anyhow::anyhow!("--noise-threshold: {e}"))?;
+    }
+    let render_options = RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()), passes, adaptive, ..RenderOptions::default() };
     let write_all = |image: &crate::film::Image, state: Option<&crate::film::FilmState>| -> anyhow::Result<()> {
-        let meta = checkpoint.metadata(state);
+        let meta = if adaptive.is_some() { checkpoint.adaptive_metadata() } else { checkpoint.metadata(state) };
         for o in &outputs {
             write_image_with(image, o, &meta)?;
         }
@@ -380,6 +429,20 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         }
         if let Some(p) = &preview {
             p.publish(report);
+        }
+        if adaptive.is_some() && !args.quiet {
+            let pixels = report.image.width as f64 * report.image.height as f64;
+            let taken = report.state.header.samples_taken;
+            say!(
+                "adaptive round {}/{}: {:.1}% of the pixels to {} spp; {} samples in all (mean {:.1} spp), {:.2} s",
+                report.pass,
+                report.passes,
+                100.0 * report.active_fraction,
+                report.spp_done,
+                taken,
+                taken as f64 / pixels.max(1.0),
+                report.elapsed_seconds
+            );
         }
         let Some(every) = args.write_every else { return };
         if report.spp_done < report.spp_total && write_error.is_none() && last_write.elapsed().as_secs_f64() >= every {
@@ -411,6 +474,17 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     }
     if let Some(p) = &preview {
         p.finish(&stats);
+    }
+    if let (true, Some(a)) = (stats.interrupted, &stats.adaptive) {
+        let names: Vec<String> = outputs.iter().chain(&args.stokes_view).map(|o| o.display().to_string()).collect();
+        say!(
+            "interrupted: wrote the adaptive render's last complete round (mean {:.1} spp, {} to {} per pixel) → {} (an adaptive render cannot be resumed)",
+            a.mean_spp,
+            a.least_spp,
+            a.most_spp,
+            names.join(", ")
+        );
+        return Ok(ExitCode::from(130));
     }
     if stats.interrupted && stats.spp_done > 0 {
         let names: Vec<String> = outputs.iter().chain(&args.stokes_view).map(|o| o.display().to_string()).collect();
@@ -448,6 +522,16 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             load_seconds,
             names.join(", ")
         );
+        if let Some(a) = &stats.adaptive {
+            say!(
+                "adaptive: {:.1} spp on average ({} to {} per pixel; threshold {}), {} samples",
+                a.mean_spp,
+                a.least_spp,
+                a.most_spp,
+                a.threshold,
+                stats.samples_taken
+            );
+        }
         if stats.invalid_samples > 0 {
             say!("warning: {} samples were NaN or infinite and were set to zero", stats.invalid_samples);
         }
@@ -564,6 +648,19 @@ impl Checkpoint {
         }
         if let Some(s) = state.filter(|s| s.header.complete && !s.is_finished()) {
             meta.state = Some(s.to_bytes());
+        }
+        meta
+    }
+
+    /// The header attributes of the output of an adaptive render: the same,
+    /// with `samples=adaptive` (its pixels hold different sample counts)
+    /// and no state, so that --resume refuses it.
+    pub fn adaptive_metadata(&self) -> ExrMetadata {
+        let mut meta = self.metadata(None);
+        for (name, value) in &mut meta.text {
+            if name == RENDER_ATTRIBUTE {
+                *value = value.replacen("samples=partial", "samples=adaptive", 1);
+            }
         }
         meta
     }

@@ -45,11 +45,55 @@ pub struct RenderOptions {
     /// applies ([`crate::integrator::wavefront`]); `None`: as the
     /// environment variable `SNELL_WAVEFRONT` says, else in RGB only.
     pub wavefront: Option<bool>,
+    /// Adaptive sampling: more samples where the image is noisier, up to
+    /// the sampler's sample count (`None`: every pixel gets them all).
+    pub adaptive: Option<Adaptive>,
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { threads: 0, progress: false, stop: None, passes: 1, wavefront: None }
+        RenderOptions { threads: 0, progress: false, stop: None, passes: 1, wavefront: None, adaptive: None }
+    }
+}
+
+/// Adaptive sampling: every pixel first gets `min_spp` samples; then, in
+/// rounds that double the samples per pixel up to the sampler's sample
+/// count, only pixels whose estimated relative standard error (from their
+/// own samples and their neighbours': [`crate::film::adaptive`]) is above
+/// `threshold` get more. Pixel `p` holds samples `[0, n_p)`, its count
+/// `n_p` a function of the film sums alone, so the image is the same for
+/// any thread count. Camera-path integrators only (light tracing splats a
+/// path anywhere on the film: a pixel's samples are not its own). Stopping
+/// on the samples' own estimate biases a pixel slightly (one that happened
+/// to look converged stops); see the README's "Adaptive sampling".
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Adaptive {
+    /// The relative standard error at which a pixel stops: its error over
+    /// √(value² + 0.01), per channel (so below 0.1 the absolute error).
+    pub threshold: f64,
+    /// Samples of every pixel before the first decision; 0: the default,
+    /// [`Adaptive::default_min_spp`].
+    pub min_spp: u32,
+}
+
+impl Adaptive {
+    /// The samples every pixel gets at least, of a render of `spp` samples
+    /// per pixel: an eighth, at least 16 (at most `spp`).
+    pub fn default_min_spp(spp: u32) -> u32 {
+        (spp / 8).max(16).min(spp)
+    }
+
+    /// The minimum of a render of `spp` samples per pixel, or an error for
+    /// options that make no sense.
+    pub fn min_spp_of(&self, spp: u32) -> anyhow::Result<u32> {
+        if !(self.threshold.is_finite() && self.threshold > 0.0) {
+            anyhow::bail!("the noise threshold must be a positive number (a relative standard error such as 0.02), not {}", self.threshold);
+        }
+        let min = if self.min_spp == 0 { Adaptive::default_min_spp(spp) } else { self.min_spp };
+        if min > spp {
+            anyhow::bail!("the adaptive minimum of {min} samples per pixel is above the render's {spp}: lower --min-spp or raise --spp");
+        }
+        Ok(min)
     }
 }
 
@@ -145,6 +189,32 @@ pub struct RenderStats {
     /// last complete pass; the full count for a finished render), 0 when the
     /// image is a partial first pass.
     pub spp_done: u32,
+    /// How an adaptive render spent its samples.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub adaptive: Option<AdaptiveStats>,
+}
+
+/// What [`RenderStats`] says of an adaptive render ([`Adaptive`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct AdaptiveStats {
+    pub threshold: f64,
+    pub min_spp: u32,
+    /// Samples per pixel, on average over the pixels, and the fewest and
+    /// most any pixel got.
+    pub mean_spp: f64,
+    pub least_spp: u32,
+    pub most_spp: u32,
+    pub rounds: Vec<AdaptiveRound>,
+}
+
+/// One round of an adaptive render.
+#[derive(Clone, Debug, Serialize)]
+pub struct AdaptiveRound {
+    /// The samples per pixel of the pixels sampled, at the round's end.
+    pub spp: u32,
+    /// The fraction of the pixels sampled in the round, and its samples.
+    pub active_fraction: f64,
+    pub samples: u64,
 }
 
 impl RenderStats {
@@ -167,6 +237,7 @@ impl RenderStats {
             render_cpu_seconds: cpu_seconds,
             samples_per_second: if seconds > 0.0 { rendered as f64 / seconds } else { 0.0 },
             invalid_samples: result.header.invalid_samples,
+            adaptive: None,
         }
     }
 }
@@ -219,6 +290,10 @@ pub struct PassReport<'a> {
     /// The exact sums behind `image` (samples `[0, spp_done)`, or the ranges of a resumed distributed render): what a
     /// checkpoint saves ([`FilmState::to_bytes`]).
     pub state: &'a FilmState,
+    /// The fraction of the pixels that got samples in this pass: 1, but
+    /// for the later rounds of an adaptive render ([`Adaptive`]), where
+    /// `spp_done` is the count of those pixels.
+    pub active_fraction: f64,
 }
 
 /// The cumulative samples per pixel after each of `passes` passes of an
@@ -279,6 +354,14 @@ pub fn render_progressive<S: Spectrum>(
         let (image, mut stats, state) = crate::integrator::sppm::render::<S>(scene, sppm, options, on_pass)?;
         stats.render_cpu_seconds = process_cpu_seconds() - cpu;
         return Ok((image, stats, state));
+    }
+    if let Some(adaptive) = &options.adaptive {
+        if resume.is_some() {
+            anyhow::bail!(
+                "cannot resume an adaptive render: its pixels hold different sample counts, which a film state does not record; render it again"
+            );
+        }
+        return render_adaptive::<S>(scene, options, adaptive, on_pass);
     }
     let spp = scene.sampler.sample_count;
     let threads = thread_count(options);
@@ -342,6 +425,7 @@ pub fn render_progressive<S: Spectrum>(
             elapsed_seconds: start.elapsed().as_secs_f64(),
             image: &image,
             state: &state,
+            active_fraction: 1.0,
         });
         if options.stopped() {
             break;
@@ -353,6 +437,158 @@ pub fn render_progressive<S: Spectrum>(
     let result = partial.unwrap_or(state);
     let stats = RenderStats::new(scene, spp, threads, seconds, cpu_seconds, rendered, &result);
     Ok((result.develop(), stats, result))
+}
+
+/// An adaptive render ([`Adaptive`]): a round of `min_spp` samples of
+/// every pixel, then rounds that double the samples per pixel (up to the
+/// sampler's count) of the pixels still active. Each round renders the
+/// first half of its samples into the `half` film and the second into
+/// another; both go into the `all` film, and the two images give each
+/// pixel's error estimate ([`crate::film::adaptive`]). `on_pass` is called
+/// after each round. A stop request abandons the round under way (keeping
+/// the first one's partial image if it is the first).
+fn render_adaptive<S: Spectrum>(
+    scene: &Scene,
+    options: &RenderOptions,
+    adaptive: &Adaptive,
+    on_pass: &mut dyn FnMut(&PassReport),
+) -> anyhow::Result<(Image, RenderStats, FilmState)> {
+    use crate::film::adaptive::{smoothed_errors, squared_errors, still_active};
+    let name = match &scene.integrator {
+        Integrator::Particle(_) => Some("ptracer"),
+        Integrator::Bdpt(_) => Some("bdpt"),
+        Integrator::Vcm(_) => Some("vcm"),
+        Integrator::Sppm(_) => Some("sppm"),
+        _ => None,
+    };
+    if let Some(name) = name {
+        anyhow::bail!(
+            "adaptive sampling needs a camera-path integrator (path, direct, volpath, AOVs): {name} adds light paths anywhere on the film, so a pixel's samples are not its own to count"
+        );
+    }
+    if options.passes > 1 {
+        anyhow::bail!("adaptive sampling renders in its own rounds (the minimum, then doubling sample counts); it does not take a number of passes");
+    }
+    let spp = scene.sampler.sample_count;
+    let min_spp = adaptive.min_spp_of(spp)?;
+    let threads = thread_count(options);
+    // The budget of a render in passes (two films); this one holds four at
+    // its peak (all samples, the first halves, the round's two halves).
+    check_memory(scene, S::POLARIZED, true)?;
+    let [_, _, w, h] = scene.film.crop;
+    let (w, h) = (w as usize, h as usize);
+    let header = state_header::<S>(scene);
+    let mut all = FilmState::empty(header.clone());
+    let mut half = FilmState::empty(header);
+    let mut active = vec![true; w * h];
+    let mut counts = vec![0u32; w * h];
+    let mut rounds: Vec<AdaptiveRound> = vec![];
+    let bar = progress_bar(options, (w * h) as u64 * spp as u64);
+    let start = Instant::now();
+    let cpu_start = process_cpu_seconds();
+    let mut partial = None;
+    let mut interrupted = false;
+    // The rounds' ends in samples per pixel: the minimum, doubling, the count.
+    let mut ends = vec![min_spp];
+    while let Some(&last) = ends.last().filter(|&&e| e < spp) {
+        ends.push(last.saturating_mul(2).min(spp));
+    }
+    let (mut begin, mut end) = (0, min_spp);
+    loop {
+        let sampled = active.iter().filter(|&&on| on).count();
+        let mid = begin + (end - begin) / 2;
+        let first = render_into::<S>(scene, options, threads, begin..mid, &bar, FilmState::empty(all.header.clone()), Some(&active))?;
+        let second = if first.header.complete {
+            render_into::<S>(scene, options, threads, mid..end, &bar, FilmState::empty(all.header.clone()), Some(&active))?
+        } else {
+            FilmState::empty(all.header.clone())
+        };
+        if !(first.header.complete && second.header.complete) {
+            interrupted = true;
+            if rounds.is_empty() {
+                let mut p = first;
+                p.merge(&second)?;
+                p.header.complete = false;
+                partial = Some(p);
+            }
+            break;
+        }
+        half.merge(&first)?;
+        all.merge(&first)?;
+        all.merge(&second)?;
+        for (n, &on) in counts.iter_mut().zip(&active) {
+            if on {
+                *n = end;
+            }
+        }
+        rounds.push(AdaptiveRound {
+            spp: end,
+            active_fraction: sampled as f64 / (w * h).max(1) as f64,
+            samples: first.header.samples_taken + second.header.samples_taken,
+        });
+        let mut image = all.develop();
+        if end == spp || options.stopped() {
+            interrupted = end < spp;
+            image.channels.push(sample_counts(&counts));
+            on_pass(&adaptive_report(&rounds, &ends, start, &image, &all));
+            break;
+        }
+        let errors = smoothed_errors(&squared_errors(&image, &half.develop()), w, h);
+        active = still_active(&errors, &active, w, h, adaptive.threshold as f32);
+        image.channels.push(sample_counts(&counts));
+        on_pass(&adaptive_report(&rounds, &ends, start, &image, &all));
+        if !active.contains(&true) {
+            break;
+        }
+        (begin, end) = (end, end.saturating_mul(2).min(spp));
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    let cpu_seconds = process_cpu_seconds() - cpu_start;
+    bar.finish_and_clear();
+    let mut result = partial.unwrap_or(all);
+    let taken = result.header.samples_taken;
+    // Every pixel holds samples [0, min_spp) at least, some more: no range
+    // says which, so the state is marked incomplete, which keeps it from
+    // being resumed or merged as if it held the same samples everywhere.
+    result.header.ranges = if rounds.is_empty() { vec![] } else { vec![0..min_spp] };
+    result.header.complete = false;
+    let mut stats = RenderStats::new(scene, spp, threads, seconds, cpu_seconds, taken, &result);
+    stats.interrupted = interrupted;
+    stats.spp_done = if rounds.is_empty() { 0 } else { min_spp };
+    let pixels = (w * h).max(1) as f64;
+    stats.adaptive = Some(AdaptiveStats {
+        threshold: adaptive.threshold,
+        min_spp,
+        mean_spp: counts.iter().map(|&n| n as f64).sum::<f64>() / pixels,
+        least_spp: counts.iter().copied().min().unwrap_or(0),
+        most_spp: counts.iter().copied().max().unwrap_or(0),
+        rounds,
+    });
+    let mut image = result.develop();
+    image.channels.push(sample_counts(&counts));
+    Ok((image, stats, result))
+}
+
+/// The per-pixel sample counts of an adaptive render, as the image's
+/// channel `spp`.
+fn sample_counts(counts: &[u32]) -> crate::film::Channel {
+    crate::film::Channel { name: "spp".into(), values: counts.iter().map(|&n| n as f32).collect() }
+}
+
+/// The [`PassReport`] of an adaptive render after `rounds`.
+/// `ends`: the rounds' ends planned.
+fn adaptive_report<'a>(rounds: &[AdaptiveRound], ends: &[u32], start: Instant, image: &'a Image, state: &'a FilmState) -> PassReport<'a> {
+    let last = rounds.last().map_or((0, 1.0), |r| (r.spp, r.active_fraction));
+    PassReport {
+        pass: rounds.len() as u32,
+        passes: ends.len() as u32,
+        spp_done: last.0,
+        spp_total: ends.last().copied().unwrap_or(0),
+        elapsed_seconds: start.elapsed().as_secs_f64(),
+        image,
+        state,
+        active_fraction: last.1,
+    }
 }
 
 /// The parts of `range` that none of `held` (sorted, disjoint) covers.
@@ -437,7 +673,7 @@ pub fn render_tile_samples<S: Spectrum>(scene: &Scene, options: &RenderOptions, 
     }
     let state = FilmState::empty_tile(header, pixels, reach)?;
     let bar = progress_bar(options, pixels[2] as u64 * pixels[3] as u64 * samples.len() as u64);
-    let state = render_into::<S>(scene, options, thread_count(options), samples, &bar, state)?;
+    let state = render_into::<S>(scene, options, thread_count(options), samples, &bar, state, None)?;
     bar.finish_and_clear();
     Ok(state)
 }
@@ -486,11 +722,14 @@ pub(crate) fn state_header<S: Spectrum>(scene: &Scene) -> StateHeader {
 /// integrator needs.
 fn render_range<S: Spectrum>(scene: &Scene, options: &RenderOptions, threads: usize, samples: Range<u32>, bar: &ProgressBar) -> anyhow::Result<FilmState> {
     let state = FilmState::empty(state_header::<S>(scene));
-    render_into::<S>(scene, options, threads, samples, bar, state)
+    render_into::<S>(scene, options, threads, samples, bar, state, None)
 }
 
 /// Renders samples `samples` of the pixels of `state` (the whole crop
-/// window, or a tile: [`FilmState::pixels`]) into it.
+/// window, or a tile: [`FilmState::pixels`]) into it; with `active` (a
+/// flag per pixel of the crop window, camera-path integrators only) only
+/// those of the pixels flagged. The state's ranges then say which samples
+/// the flagged pixels got.
 fn render_into<S: Spectrum>(
     scene: &Scene,
     options: &RenderOptions,
@@ -498,6 +737,7 @@ fn render_into<S: Spectrum>(
     samples: Range<u32>,
     bar: &ProgressBar,
     mut state: FilmState,
+    active: Option<&[bool]>,
 ) -> anyhow::Result<FilmState> {
     let pool = thread_pool(threads)?;
     if samples.is_empty() {
@@ -509,6 +749,10 @@ fn render_into<S: Spectrum>(
             crate::integrator::guiding::train::ensure_trained::<S>(scene, pt, g, &pool);
         }
     }
+    let splats = matches!(scene.integrator, Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Vcm(_) | Integrator::Sppm(_));
+    if active.is_some() && splats {
+        anyhow::bail!("adaptive sampling needs a camera-path integrator");
+    }
     let (taken, invalid) = if let Integrator::Particle(tracer) = &scene.integrator {
         render_particles::<S>(scene, tracer, options, &pool, &samples, rect, &mut state, bar)
     } else if let Integrator::Bdpt(bdpt) = &scene.integrator {
@@ -519,9 +763,13 @@ fn render_into<S: Spectrum>(
     } else if let Integrator::Vcm(vcm) = &scene.integrator {
         crate::integrator::vcm::render_range::<S>(scene, vcm, options, &pool, &samples, rect, &mut state, bar)?
     } else {
-        render_camera::<S>(scene, options, &pool, &samples, rect, &mut state, bar)
+        render_camera::<S>(scene, options, &pool, &samples, rect, &mut state, bar, active)
     };
-    let planned = rect[2] as u64 * rect[3] as u64 * samples.len() as u64;
+    let pixels = match active {
+        Some(a) => a.iter().filter(|&&on| on).count() as u64,
+        None => rect[2] as u64 * rect[3] as u64,
+    };
+    let planned = pixels * samples.len() as u64;
     state.header.samples_taken = taken;
     state.header.invalid_samples = invalid;
     state.header.complete = taken == planned;
@@ -532,7 +780,9 @@ fn render_into<S: Spectrum>(
 /// Camera paths: tiles of the crop window rendered in parallel, each into
 /// its own [`Sink`] that is then added to the state (exact integer sums, so
 /// the order tiles finish in does not matter). Returns the samples taken
-/// and the invalid ones.
+/// and the invalid ones. With `active` (a flag per pixel of the crop
+/// window), only the flagged pixels are sampled.
+#[allow(clippy::too_many_arguments)]
 fn render_camera<S: Spectrum>(
     scene: &Scene,
     options: &RenderOptions,
@@ -541,11 +791,12 @@ fn render_camera<S: Spectrum>(
     rect: [u32; 4],
     state: &mut FilmState,
     bar: &ProgressBar,
+    active: Option<&[bool]>,
 ) -> (u64, u64) {
     // The crop window (the whole film unless the scene crops): pixels are
     // numbered within it, the camera sees the full film. `rect` is the part
     // rendered (the whole window, or a tile of a distributed render).
-    let [ox, oy, _, _] = scene.film.crop;
+    let [ox, oy, cw, _] = scene.film.crop;
     let [rx, ry, rw, rh] = rect;
     let taken = AtomicU64::new(0);
     let border = (scene.film.filter.radius() + 0.5).ceil() as i32;
@@ -556,10 +807,26 @@ fn render_camera<S: Spectrum>(
     let layout = state.header.layout.clone();
     let n_extra = layout.extra.len();
 
+    // The runs of consecutive pixels to sample in row y, columns xs.
+    let runs = |y: u32, xs: Range<u32>| -> Vec<Range<u32>> {
+        let Some(active) = active else { return vec![xs] };
+        let on = |x: u32| active[(y * cw + x) as usize];
+        let mut out: Vec<Range<u32>> = vec![];
+        for x in xs.filter(|&x| on(x)) {
+            match out.last_mut() {
+                Some(r) if r.end == x => r.end = x + 1,
+                _ => out.push(x..x + 1),
+            }
+        }
+        out
+    };
     let mut tiles = vec![];
     for ty in (ry..ry + rh).step_by(TILE as usize) {
         for tx in (rx..rx + rw).step_by(TILE as usize) {
-            tiles.push((tx, ty, TILE.min(rx + rw - tx), TILE.min(ry + rh - ty)));
+            let (tw, th) = (TILE.min(rx + rw - tx), TILE.min(ry + rh - ty));
+            if (ty..ty + th).any(|y| !runs(y, tx..tx + tw).is_empty()) {
+                tiles.push((tx, ty, tw, th));
+            }
         }
     }
     let invalid = AtomicU64::new(0);
@@ -584,13 +851,17 @@ fn render_camera<S: Spectrum>(
                 if options.stopped() {
                     break;
                 }
-                taken.fetch_add(tw as u64 * samples.len() as u64, Ordering::Relaxed);
+                let runs = runs(y, tx..tx + tw);
+                let work = runs.iter().map(|r| r.len() as u64).sum::<u64>() * samples.len() as u64;
+                taken.fetch_add(work, Ordering::Relaxed);
                 if let (Some(pt), Some(q)) = (wavefront, queues.as_mut()) {
-                    bad += crate::integrator::wavefront::render_row::<S>(scene, pt, y, tx..tx + tw, samples.clone(), &setup, q, &mut sink);
-                    bar.inc(tw as u64 * samples.len() as u64);
+                    for xs in runs {
+                        bad += crate::integrator::wavefront::render_row::<S>(scene, pt, y, xs, samples.clone(), &setup, q, &mut sink);
+                    }
+                    bar.inc(work);
                     continue;
                 }
-                for x in tx..tx + tw {
+                for x in runs.into_iter().flatten() {
                     // Seeded by the pixel's place in the full film: a crop
                     // renders the same samples as the full render there.
                     for index in samples.clone() {
@@ -621,7 +892,7 @@ fn render_camera<S: Spectrum>(
                         sink.add_sample(&scene.film.filter, pos, rgb, S::POLARIZED.then_some(&s123), &extra);
                     }
                 }
-                bar.inc(tw as u64 * samples.len() as u64);
+                bar.inc(work);
             }
             if bad > 0 {
                 invalid.fetch_add(bad, Ordering::Relaxed);

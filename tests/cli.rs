@@ -325,3 +325,42 @@ fn polarized_modes_refuse_bsdfs_without_a_mueller_model() {
         }
     }
 }
+
+/// `--noise-threshold`: the EXR gets each pixel's sample count as the
+/// channel `spp`, `--stats` the rounds, stderr a line per round; the options
+/// it cannot take are refused with the reason.
+#[test]
+fn adaptive_sampling() {
+    let (dir, scene) = setup("adaptive");
+    let (exr, stats) = (dir.join("a.exr"), dir.join("stats.json"));
+    let out = snell(&["render", s(&scene), "-o", s(&exr), "--spp", "64", "--min-spp", "8", "--noise-threshold", "0.01", "--stats", s(&stats)], &dir);
+    assert_success(&out);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("adaptive round 1/4: 100.0% of the pixels to 8 spp") && stderr.contains("adaptive round 4/4"), "{stderr}");
+    let img = read_exr(&exr);
+    let n = img.channel("spp").expect("an spp channel").values.clone();
+    assert_eq!(n[0], 8.0, "the sky corner stops at the minimum");
+    assert_eq!(n[12 * 32 + 16], 64.0, "the sphere's centre takes every sample");
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).expect("stats are not JSON");
+    assert_eq!(json["adaptive"]["min_spp"], 8);
+    assert_eq!(json["adaptive"]["rounds"].as_array().map(Vec::len), Some(4));
+    assert_eq!(json["samples_taken"].as_f64(), Some(n.iter().map(|&v| v as f64).sum::<f64>()));
+    // Its output holds no resumable state.
+    let e = assert_failure(&snell(&["render", s(&scene), "--spp", "64", "--resume", s(&exr), "-o", s(&dir.join("b.exr"))], &dir));
+    assert!(e.contains("no resumable state") && e.contains("adaptive"), "{e}");
+    for (args, want) in [
+        (&["--noise-threshold", "0"][..], "positive"),
+        (&["--noise-threshold=-1"], "positive"),
+        (&["--noise-threshold", "0.05", "--min-spp", "128"], "above the render's 64"),
+        (&["--noise-threshold", "0.05", "--min-spp", "0"], "at least 1"),
+        (&["--noise-threshold", "0.05", "--passes", "3"], "leave out --passes"),
+        (&["--noise-threshold", "0.05", "--write-every", "1"], "checkpoint"),
+        (&["--noise-threshold", "0.05", "--resume", "x.exr"], "checkpoint"),
+        (&["--min-spp", "8"], "--noise-threshold"),
+    ] {
+        let mut all = vec!["render", s(&scene), "-o", "c.exr", "--spp", "64"];
+        all.extend_from_slice(args);
+        let e = assert_failure(&snell(&all, &dir));
+        assert!(e.contains(want), "{args:?}: {e}");
+    }
+}

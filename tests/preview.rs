@@ -109,7 +109,7 @@ fn no_state() -> &'static snell::film::FilmState {
 }
 
 fn report(image: &Image, pass: u32) -> PassReport<'_> {
-    PassReport { pass, passes: 4, spp_done: 1 << pass, spp_total: 16, elapsed_seconds: pass as f64 * 0.5, image, state: no_state() }
+    PassReport { pass, passes: 4, spp_done: 1 << pass, spp_total: 16, elapsed_seconds: pass as f64 * 0.5, image, state: no_state(), active_fraction: 1.0 }
 }
 
 /// Decodes a frame: (width, height, layers, pass, floats).

@@ -45,7 +45,8 @@ there, else Snell's sobol), then renders --runs images per sampler (seeds
 1..runs) at --spp with Snell's independent, multijitter, sobol and zsobol
 (--snell-samplers; each --snell-integrator KEY=VALUE,... is a variant with
 properties (integer, float, boolean) added to Snell's integrator, e.g. bsdf_samples=2, "" the
-scene's own) and
+scene's own; each --snell-args "FLAGS" a variant with these command-line flags
+added, e.g. "--noise-threshold 0.05", "" none) and
 Mitsuba's independent, multijitter and ldsampler, in the same run, and prints
   efficiency = 1 / (relMSE × render seconds),
 relMSE = mean over pixels and channels of (x − ref)² / (ref² + 0.01), averaged
@@ -67,6 +68,7 @@ import array
 import json
 import os
 import re
+import shlex
 import statistics
 import subprocess
 import sys
@@ -540,16 +542,17 @@ def scene_with_sampler(scene, sampler, integrator_props=()):
     return path
 
 
-def snell_images(args, scene, params, sampler, spp, seeds, out, variant=""):
+def snell_images(args, scene, params, sampler, spp, seeds, out, variant="", flags=""):
     """Renders `scene` with Snell's `sampler` once per seed (`variant`: the
-    integrator's extra KEY=VALUE,... properties); returns (seconds, [pfm paths])."""
+    integrator's extra KEY=VALUE,... properties; `flags`: further command-line
+    flags); returns (seconds, [pfm paths])."""
     path = scene_with_sampler(scene, sampler, [kv for kv in variant.split(",") if kv])
     secs, files = [], []
     try:
         for seed in seeds:
             pfm = f"{out}-snell-{sampler}-{seed}.pfm"
             cmd = [args.snell, "render", path, "-o", pfm, "--spp", str(spp), "--seed", str(seed),
-                   "--threads", str(args.threads), "--stats", "/tmp/stats.json"]
+                   "--threads", str(args.threads), "--stats", "/tmp/stats.json"] + shlex.split(flags)
             for k, v in params.items():
                 cmd += ["-D", f"{k}={v}"]
             before = os.times()
@@ -662,10 +665,12 @@ def efficiency_scene(args, scene):
     seeds = list(range(1, args.runs + 1))
     rows = []
     variants = args.snell_integrator or [""]
-    jobs = [("snell", s, v) for v in variants for s in ([] if args.no_snell else args.snell_samplers.split(","))]
-    jobs += [("mitsuba", s, "") for s in MITSUBA_SAMPLERS]
-    for who, sampler, variant in jobs:
-        got = (snell_images(args, scene, params, sampler, args.spp, seeds, out, variant) if who == "snell"
+    flag_sets = args.snell_args or [""]
+    jobs = [("snell", s, v, f) for f in flag_sets for v in variants
+            for s in ([] if args.no_snell else args.snell_samplers.split(","))]
+    jobs += [("mitsuba", s, "", "") for s in MITSUBA_SAMPLERS]
+    for who, sampler, variant, flags in jobs:
+        got = (snell_images(args, scene, params, sampler, args.spp, seeds, out, variant, flags) if who == "snell"
                else mitsuba_images(args, scene, sampler, args.spp, seeds, out))
         if got is None:
             continue
@@ -681,6 +686,8 @@ def efficiency_scene(args, scene):
         t = cpu / args.threads if args.cpu_time else wall
         if variant:
             sampler = f"{sampler}+{variant}"
+        if flags:
+            sampler = f"{sampler} {flags}"
         row = {"renderer": who, "sampler": sampler, "rel_mse": e, "seconds": t, "wall_seconds": wall,
                "cpu_seconds": cpu, "process_cpu_seconds": process, "efficiency": 1.0 / (e * t)}
         rows.append(row)
@@ -751,6 +758,9 @@ def main():
     ap.add_argument("--snell-integrator", action="append", default=[], metavar="KEY=VALUE[,...]",
                     help="--efficiency: a variant of Snell's integrator, properties added to it (boolean, float or integer) "
                          "(e.g. bsdf_samples=2; repeatable, each one measured; an empty one is the scene's own)")
+    ap.add_argument("--snell-args", action="append", default=[], metavar="FLAGS",
+                    help="--efficiency: a variant with these flags added to Snell's command line "
+                         "(e.g. \"--noise-threshold 0.05\"; repeatable, each one measured; an empty one adds none)")
     ap.add_argument("--mitsuba-efficiency-worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--sampler", help=argparse.SUPPRESS)
     ap.add_argument("--seeds", help=argparse.SUPPRESS)

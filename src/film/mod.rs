@@ -37,6 +37,7 @@
 //! split over threads, passes or machines.
 
 pub mod accumulator;
+pub mod adaptive;
 pub mod filter;
 pub mod output;
 pub mod stokes;

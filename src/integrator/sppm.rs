@@ -849,6 +849,7 @@ pub fn render<S: Spectrum>(
             elapsed_seconds: start.elapsed().as_secs_f64(),
             image: &image,
             state: &state,
+            active_fraction: 1.0,
         });
     }
     if state.spp() != done {
@@ -875,6 +876,7 @@ pub fn render<S: Spectrum>(
         samples_taken: taken,
         samples_planned: pixels as u64 * iterations as u64,
         spp_done: done,
+        adaptive: None,
     };
     Ok((state.develop(), stats, state))
 }
