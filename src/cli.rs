@@ -144,7 +144,10 @@ impl RenderArgs {
 
 /// Passes of a command-line render unless --passes says otherwise: the
 /// first pass holds 1/16 of the samples, so an interruption after it still
-/// writes an image with every pixel rendered (measured to cost nothing).
+/// writes an image with every pixel rendered. Each pass costs a film state,
+/// a merge and a developed image, so the passes after the first are joined
+/// into one when they are due to end within two seconds
+/// ([`RenderOptions::join_passes_under`]).
 const DEFAULT_PASSES: u32 = 5;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -405,7 +408,12 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         // The option errors (min above spp) before the render starts.
         a.min_spp_of(scene.sampler.sample_count).map_err(|e| anyhow::anyhow!("--noise-threshold: {e}"))?;
     }
-    let render_options = RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()), passes, adaptive, ..RenderOptions::default() };
+    // Without --passes or a preview, the passes are only a safety net for
+    // interruptions: the rest of a render due to end within two seconds is
+    // rendered as one pass.
+    let join_passes_under = (args.passes.is_none() && preview.is_none()).then_some(2.0);
+    let render_options =
+        RenderOptions { threads: args.threads, progress: show, stop: Some(stop.clone()), passes, adaptive, join_passes_under, ..RenderOptions::default() };
     let write_all = |image: &crate::film::Image, state: Option<&crate::film::FilmState>| -> anyhow::Result<()> {
         let meta = if adaptive.is_some() { checkpoint.adaptive_metadata() } else { checkpoint.metadata(state) };
         for o in &outputs {

@@ -48,11 +48,19 @@ pub struct RenderOptions {
     /// Adaptive sampling: more samples where the image is noisier, up to
     /// the sampler's sample count (`None`: every pixel gets them all).
     pub adaptive: Option<Adaptive>,
+    /// Join the passes still to come into one once they are expected (at
+    /// the rate of the passes so far) to take at most this many seconds.
+    /// Passes are for previews, checkpoints and interruptions, which a
+    /// render about to end does not need, and each costs a film state, a
+    /// merge and a developed image (≈ 10 % of a half-second render in five
+    /// passes). The image is the same, bit for bit. `None`: every planned
+    /// pass (a preview or a caller's callback sees each one).
+    pub join_passes_under: Option<f64>,
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { threads: 0, progress: false, stop: None, passes: 1, wavefront: None, adaptive: None }
+        RenderOptions { threads: 0, progress: false, stop: None, passes: 1, wavefront: None, adaptive: None, join_passes_under: None }
     }
 }
 
@@ -395,7 +403,9 @@ pub fn render_progressive<S: Spectrum>(
     let cpu_start = process_cpu_seconds();
     let mut rendered = 0u64;
     let mut partial = None;
-    for (k, (_, holes)) in schedule.iter().enumerate() {
+    let mut k = 0;
+    while k < schedule.len() {
+        let holes = &schedule[k].1;
         let mut pass = render_range::<S>(scene, options, threads, holes[0].clone(), &bar)?;
         for hole in &holes[1..] {
             if !pass.header.complete {
@@ -429,6 +439,10 @@ pub fn render_progressive<S: Spectrum>(
         });
         if options.stopped() {
             break;
+        }
+        k += 1;
+        if let Some(limit) = options.join_passes_under {
+            join_short_rest(&mut schedule, k, start.elapsed().as_secs_f64(), limit);
         }
     }
     let seconds = start.elapsed().as_secs_f64();
@@ -589,6 +603,29 @@ fn adaptive_report<'a>(rounds: &[AdaptiveRound], ends: &[u32], start: Instant, i
         state,
         active_fraction: last.1,
     }
+}
+
+/// Joins passes `done..` of `schedule` into one (their sample ranges, with
+/// adjacent ones made one range) when the passes before `done`, which took
+/// `elapsed` seconds, say they would take at most `limit` seconds.
+fn join_short_rest(schedule: &mut Vec<(u32, Vec<Range<u32>>)>, done: usize, elapsed: f64, limit: f64) {
+    if schedule.len() < done + 2 {
+        return;
+    }
+    let samples = |passes: &[(u32, Vec<Range<u32>>)]| passes.iter().flat_map(|(_, h)| h).map(|r| r.len() as f64).sum::<f64>();
+    let (rendered, rest) = (samples(&schedule[..done]), samples(&schedule[done..]));
+    if rendered <= 0.0 || rest * elapsed / rendered > limit {
+        return;
+    }
+    let end = schedule[schedule.len() - 1].0;
+    let mut joined: Vec<Range<u32>> = vec![];
+    for r in schedule.drain(done..).flat_map(|(_, h)| h) {
+        match joined.last_mut() {
+            Some(last) if last.end == r.start => last.end = r.end,
+            _ => joined.push(r),
+        }
+    }
+    schedule.push((end, joined));
 }
 
 /// The parts of `range` that none of `held` (sorted, disjoint) covers.

@@ -115,6 +115,22 @@ fn merged_sample_ranges_equal_the_single_render_in_any_order() {
 }
 
 #[test]
+fn short_remaining_passes_are_joined_into_one_with_the_same_image() {
+    let scene = cornell("path", "32", "16");
+    let want = bits(&snell::render::<Rgb>(&scene, &options(2, 1)).expect("render").0);
+    // Any rest is "short" under a huge limit: the first pass, then the rest at once.
+    for (limit, expect) in [(1e9, vec![1, 16]), (-1.0, snell::render::pass_schedule(16, 5))] {
+        let opts = RenderOptions { join_passes_under: Some(limit), ..options(2, 5) };
+        let mut seen = vec![];
+        let (image, stats) = snell::render::render_passes::<Rgb>(&scene, &opts, &mut |r| seen.push((r.spp_done, r.passes))).expect("render");
+        assert_eq!(seen.iter().map(|s| s.0).collect::<Vec<_>>(), expect, "limit {limit}");
+        assert_eq!(seen.last().map(|s| s.1), Some(expect.len() as u32), "limit {limit}: the last report counts the passes made");
+        assert_eq!(stats.spp_done, 16);
+        assert!(bits(&image) == want, "limit {limit}: joined passes changed the image");
+    }
+}
+
+#[test]
 fn a_stop_request_keeps_the_last_complete_pass() {
     let scene = cornell("path", "32", "16");
     let stop = Arc::new(AtomicBool::new(false));
