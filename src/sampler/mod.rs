@@ -677,19 +677,21 @@ mod set_dimension_tests {
     use super::testing::spec;
     use super::*;
 
+    /// One sampler of every kind, with parameters that exercise them.
+    const EVERY_KIND: [SamplerKind; 7] = [
+        SamplerKind::Independent,
+        SamplerKind::Stratified { jitter: true, dimension: 3 },
+        SamplerKind::Multijitter { jitter: true },
+        SamplerKind::Orthogonal { jitter: true, strength: 2 },
+        SamplerKind::LdSampler { dimension: 4 },
+        SamplerKind::Sobol,
+        SamplerKind::ZSobol { log2_res: 0 },
+    ];
+
     /// `skip_1d` leaves a sample where `next_1d` would, for every sampler.
     #[test]
     fn skip_1d_is_an_unused_next_1d() {
-        let kinds = [
-            SamplerKind::Independent,
-            SamplerKind::Stratified { jitter: true, dimension: 3 },
-            SamplerKind::Multijitter { jitter: true },
-            SamplerKind::Orthogonal { jitter: true, strength: 2 },
-            SamplerKind::LdSampler { dimension: 4 },
-            SamplerKind::Sobol,
-            SamplerKind::ZSobol { log2_res: 0 },
-        ];
-        for kind in kinds {
+        for kind in EVERY_KIND {
             let spec = spec(kind, 16, 3);
             for index in [0, 5, 16, 40] {
                 let (mut drawn, mut skipped) = (Sampler::start(&spec, 2, 3, index), Sampler::start(&spec, 2, 3, index));
@@ -711,16 +713,7 @@ mod set_dimension_tests {
     /// sampler, with and without the wavelength draw.
     #[test]
     fn start_camera_into_is_start_and_the_first_draws() {
-        let kinds = [
-            SamplerKind::Independent,
-            SamplerKind::Stratified { jitter: true, dimension: 3 },
-            SamplerKind::Multijitter { jitter: true },
-            SamplerKind::Orthogonal { jitter: true, strength: 2 },
-            SamplerKind::LdSampler { dimension: 4 },
-            SamplerKind::Sobol,
-            SamplerKind::ZSobol { log2_res: 0 },
-        ];
-        for kind in kinds {
+        for kind in EVERY_KIND {
             let spec = spec(kind, 16, 3);
             let pixel = PixelSamples::new(&spec, 5, 7);
             for spectral in [false, true] {
