@@ -468,14 +468,7 @@ fn render_adaptive<S: Spectrum>(
     on_pass: &mut dyn FnMut(&PassReport),
 ) -> anyhow::Result<(Image, RenderStats, FilmState)> {
     use crate::film::adaptive::{smoothed_errors, squared_errors, still_active};
-    let name = match &scene.integrator {
-        Integrator::Particle(_) => Some("ptracer"),
-        Integrator::Bdpt(_) => Some("bdpt"),
-        Integrator::Vcm(_) => Some("vcm"),
-        Integrator::Sppm(_) => Some("sppm"),
-        _ => None,
-    };
-    if let Some(name) = name {
+    if let Some(name) = scene.integrator.light_path_name() {
         anyhow::bail!(
             "adaptive sampling needs a camera-path integrator (path, direct, volpath, AOVs): {name} adds light paths anywhere on the film, so a pixel's samples are not its own to count"
         );
@@ -786,8 +779,7 @@ fn render_into<S: Spectrum>(
             crate::integrator::guiding::train::ensure_trained::<S>(scene, pt, g, &pool);
         }
     }
-    let splats = matches!(scene.integrator, Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Vcm(_) | Integrator::Sppm(_));
-    if active.is_some() && splats {
+    if active.is_some() && scene.integrator.light_path_name().is_some() {
         anyhow::bail!("adaptive sampling needs a camera-path integrator");
     }
     let (taken, invalid) = if let Integrator::Particle(tracer) = &scene.integrator {

@@ -53,6 +53,19 @@ pub enum Integrator {
 }
 
 impl Integrator {
+    /// The plugin name of an integrator that adds light paths anywhere on
+    /// the film (so that a pixel's samples are not only its own camera
+    /// paths); `None` for the camera-path integrators.
+    pub fn light_path_name(&self) -> Option<&'static str> {
+        match self {
+            Integrator::Particle(_) => Some("ptracer"),
+            Integrator::Bdpt(_) => Some("bdpt"),
+            Integrator::Vcm(_) => Some("vcm"),
+            Integrator::Sppm(_) => Some("sppm"),
+            Integrator::Direct(_) | Integrator::Path(_) | Integrator::Aov(_) | Integrator::Moment(_) => None,
+        }
+    }
+
     #[inline]
     /// Radiance along `ray`. A dispersive interface on the path may cut `wl`
     /// down to its hero wavelength; the film must weight with the final `wl`.
