@@ -20,7 +20,8 @@ find in any affordable time (scenes/pool-sun.xml). The scene's integrator block 
 
 Usage: python3 tools/sppm_efficiency.py --scene scenes/caustic-cornell-box.xml
            [--res 64] [--threads 2] [--ref-spp 8192] [--iterations 64]
-           [--photons 50000] [--photon-mode caustics|indirect] [--radius-footprints 1.5]
+           [--photons 50000] [--photon-mode caustics|all_caustics|indirect] [--radius-footprints 1.5]
+           [--vertex-radius-scale 4]
            [--runs 3] [--drop REGEX] [-D key=value ...]
            [--ref sppm --ref-iterations 256 --ref-photons 2000000 --ref-radius 0.01]
 """
@@ -95,10 +96,12 @@ def main():
     ap.add_argument("--ref-spp", type=int, default=8192)
     ap.add_argument("--iterations", type=int, default=64)
     ap.add_argument("--photons", type=int, default=50000)
-    ap.add_argument("--photon-mode", choices=["caustics", "indirect"], default="caustics",
+    ap.add_argument("--photon-mode", choices=["caustics", "all_caustics", "indirect"], default="caustics",
                     help="sppm's `photons`: the light the photons carry")
     ap.add_argument("--radius-footprints", type=float, default=1.5,
                     help="sppm's automatic initial radius in pixel footprints")
+    ap.add_argument("--vertex-radius-scale", type=float, default=0.0,
+                    help="photons=all_caustics: the later vertices' radius in visible-point radii (0: sppm's default)")
     ap.add_argument("--max-depth", type=int, default=8)
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--drop", action="append", default=[])
@@ -115,7 +118,9 @@ def main():
     sppm_xml = (f'<integrator type="sppm"><integer name="max_depth" value="{args.max_depth}"/>'
                 f'<integer name="photon_count" value="{args.photons}"/>'
                 f'<string name="photons" value="{args.photon_mode}"/>'
-                f'<float name="radius_footprints" value="{args.radius_footprints}"/></integrator>')
+                f'<float name="radius_footprints" value="{args.radius_footprints}"/>'
+                + (f'<float name="vertex_radius_scale" value="{args.vertex_radius_scale}"/>' if args.vertex_radius_scale > 0 else '')
+                + '</integrator>')
     ref_xml = (f'<integrator type="sppm"><integer name="max_depth" value="{args.max_depth}"/>'
                f'<integer name="photon_count" value="{args.ref_photons}"/>'
                f'<float name="initial_radius" value="{args.ref_radius}"/></integrator>')

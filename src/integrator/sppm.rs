@@ -14,7 +14,17 @@
 //! a path tracer's noise without a photon map's blur. With
 //! `photons = indirect` the split is classic SPPM's instead: photons carry
 //! all light that bounced at least once before the visible point, and only
-//! the direct light there is sampled.
+//! the direct light there is sampled. With `photons = all_caustics` the
+//! caustic photons are gathered at every smooth vertex of the camera path,
+//! not only at the visible point: the light a path tracer finds worst
+//! after the first bounce too (a small light met through glass from a
+//! diffuse wall lit by a caustic) comes from photons, and the camera path
+//! stops wherever a delta bounce follows a smooth one. The later vertices
+//! are not tracked from one iteration to the next, so they take a radius
+//! shared by all (`vertex_radius_scale` × the visible points' mean initial
+//! radius in the first iteration), shrunk as VCM shrinks its radius:
+//! r_k² = r_1² · k^(α − 1); each iteration's estimate there is added to
+//! the pixel's path-traced light.
 //!
 //! Each iteration (one per sample of the sampler: `sample_count` iterations)
 //!
@@ -61,7 +71,8 @@
 //! | `rr_depth` | integer | 5 | depth at which Russian roulette starts (camera and light paths each) |
 //! | `granularity` | integer | 0 | photons per unit of parallel work; 0 = automatic. No effect on the image |
 //! | `max_passes` | integer | -1 | iterations; -1 = the sampler's `sample_count` (a command-line sample count wins over both) |
-//! | `photons` | string | `caustics` | the light photons carry: `caustics` (arriving at the visible point straight from a delta bounce; the rest is path traced), `indirect` (everything that bounced before the visible point: classic SPPM, only direct light sampled there), `none` (no photons: the image without caustics, for measuring the split; not a complete image) |
+//! | `photons` | string | `caustics` | the light photons carry: `caustics` (arriving at the visible point straight from a delta bounce; the rest is path traced), `all_caustics` (arriving straight from a delta bounce at any smooth vertex of the camera path from the visible point on), `indirect` (everything that bounced before the visible point: classic SPPM, only direct light sampled there), `none` (no photons: the image without caustics, for measuring the split; not a complete image) |
+//! | `vertex_radius_scale` | float | 4 | `photons = all_caustics`: the radius at the camera path's later vertices in the first iteration, in units of the visible points' mean initial radius |
 //! | `radius_footprints` | float | 1.5 | the automatic initial radius (`initial_radius` 0) in pixel footprints at each pixel's first visible point |
 //!
 //! ```xml
@@ -93,7 +104,9 @@
 //!   order of the sums does not matter).
 //! - Memory: per pixel one visible point, its statistics and at most eight
 //!   grid entries ([`MEMORY_PER_PIXEL`] bytes in all); photons are not
-//!   stored, so memory does not grow with `photon_count`.
+//!   stored, so memory does not grow with `photon_count`. With
+//!   `photons = all_caustics` each later vertex of an iteration's camera
+//!   paths takes as much again.
 
 use crate::bsdf::{BsdfContext, Lobe};
 use crate::film::{FilmState, Filter, Image, Sink};
@@ -131,6 +144,10 @@ pub struct Sppm {
     pub photons: Photons,
     /// The automatic initial radius in pixel footprints at the visible point.
     pub radius_footprints: f32,
+    /// `photons = all_caustics`: the first iteration's gather radius at the
+    /// camera path's later vertices, in units of the visible points' mean
+    /// initial radius.
+    pub vertex_radius_scale: f32,
 }
 
 /// The split of the light between photons and camera paths (`photons`).
@@ -138,6 +155,9 @@ pub struct Sppm {
 pub enum Photons {
     /// Photons arriving straight from a delta bounce (Jensen's caustic map).
     Caustics,
+    /// The same photons gathered at every non-delta vertex of the camera
+    /// path, not only at the visible point.
+    AllCaustics,
     /// Photons after any bounce: all indirect light (classic SPPM).
     Indirect,
     /// No photons: the image without the caustics (a diagnostic).
@@ -145,11 +165,12 @@ pub enum Photons {
 }
 
 impl Photons {
-    pub const NAMES: [&'static str; 3] = ["caustics", "indirect", "none"];
+    pub const NAMES: [&'static str; 4] = ["caustics", "all_caustics", "indirect", "none"];
 
     pub fn from_name(name: &str) -> Option<Photons> {
         match name {
             "caustics" => Some(Photons::Caustics),
+            "all_caustics" => Some(Photons::AllCaustics),
             "indirect" => Some(Photons::Indirect),
             "none" => Some(Photons::None),
             _ => None,
@@ -232,6 +253,12 @@ impl Grid {
                 vp.as_ref().map(|vp| (GridEntry { p: vp.si.p, r2: r * r, pixel: i as u32 }, r))
             })
             .collect();
+        Grid::from_entries(pts)
+    }
+
+    /// The grid of `pts`, each a visible point (`pixel`: its index among
+    /// the points looked up) with its radius.
+    fn from_entries(pts: Vec<(GridEntry, f32)>) -> Option<Grid> {
         let (mut lo, mut hi, mut max_r) =
             (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY), 0.0f32);
         for (e, r) in &pts {
@@ -253,37 +280,48 @@ impl Grid {
         };
         // A point goes once into each bucket its cells hash to: two of its
         // cells may share a bucket, and a photon there must count it once.
-        // Points go in in order, so a bucket's last point tells.
-        let each = |f: &mut dyn FnMut(usize, &GridEntry)| {
-            let mut last = vec![u32::MAX; count];
-            for (e, r) in &pts {
+        // The hashing in parallel (each point's buckets, at most 8); the
+        // buckets filled in the points' order.
+        const NONE: u32 = u32::MAX;
+        let point_buckets: Vec<[u32; 8]> = pts
+            .par_iter()
+            .map(|(e, r)| {
+                let mut out = [NONE; 8];
+                let mut n = 0;
                 let r = Vec3::splat(*r);
                 let (a, b) = (grid.cell(e.p - r), grid.cell(e.p + r));
                 for z in a[2]..=b[2] {
                     for y in a[1]..=b[1] {
                         for x in a[0]..=b[0] {
-                            let bucket = hash_cell([x, y, z], count);
-                            if last[bucket] != e.pixel {
-                                last[bucket] = e.pixel;
-                                f(bucket, e);
+                            let bucket = hash_cell([x, y, z], count) as u32;
+                            if n < 8 && !out[..n].contains(&bucket) {
+                                out[n] = bucket;
+                                n += 1;
                             }
                         }
                     }
                 }
-            }
-        };
+                out
+            })
+            .collect();
         let mut counts = vec![0u32; count + 1];
-        each(&mut |b, _| counts[b + 1] += 1);
+        for bs in &point_buckets {
+            for &b in bs.iter().take_while(|&&b| b != NONE) {
+                counts[b as usize + 1] += 1;
+            }
+        }
         for b in 0..count {
             counts[b + 1] += counts[b];
         }
         let mut fill = counts.clone();
         let empty = GridEntry { p: Vec3::ZERO, r2: 0.0, pixel: 0 };
         let mut items = vec![empty; counts[count] as usize];
-        each(&mut |b, e| {
-            items[fill[b] as usize] = *e;
-            fill[b] += 1;
-        });
+        for ((e, _), bs) in pts.iter().zip(&point_buckets) {
+            for &b in bs.iter().take_while(|&&b| b != NONE) {
+                items[fill[b as usize] as usize] = *e;
+                fill[b as usize] += 1;
+            }
+        }
         grid.starts = counts;
         grid.items = items;
         Some(grid)
@@ -352,7 +390,10 @@ impl Sppm {
     /// 2); with `photons = caustics` the path stops where the vertex after
     /// the visible point scatters by a delta lobe (the photons carry that
     /// light), and with `photons = indirect` it stops at the vertex after
-    /// the visible point (only direct light is sampled there).
+    /// the visible point (only direct light is sampled there). With
+    /// `photons = all_caustics` every non-delta vertex after the visible
+    /// point is a gather point too, pushed onto `later`, and the path stops
+    /// wherever a delta bounce follows a smooth one after the visible point.
     fn camera_path<S: Spectrum>(
         &self,
         scene: &Scene,
@@ -360,6 +401,7 @@ impl Sppm {
         y: u32,
         iteration: u32,
         wl: S::Wavelengths,
+        later: &mut Vec<VisiblePoint<S>>,
     ) -> (Rgb, Option<VisiblePoint<S>>) {
         let mut sampler = Sampler::start(&scene.sampler, x, y, iteration);
         let inv_size = Vec2::new(
@@ -412,6 +454,11 @@ impl Sppm {
                 lobes.intersects(Lobe::DELTA),
             );
             let mut sample_ctx = ctx;
+            if after >= 1 && self.photons == Photons::AllCaustics && smooth {
+                // Light arriving here straight from a delta bounce is the
+                // photons' (a photon adds at least one segment).
+                later.push(VisiblePoint { si: si.clone(), beta, wl, depth, distance });
+            }
             if vp.is_none() {
                 if !smooth && !delta {
                     break;
@@ -449,8 +496,15 @@ impl Sppm {
                 break;
             };
             let delta_bounce = bs.lobe.intersects(Lobe::DELTA);
-            if after == 1 && delta_bounce && self.photons != Photons::Indirect {
-                // A caustic onto the visible point: the photons' part.
+            let caustic = match self.photons {
+                // Onto the visible point (whose bounce is always smooth).
+                Photons::Caustics | Photons::None => after == 1,
+                // Onto any smooth vertex from the visible point on.
+                Photons::AllCaustics => after >= 1 && !prev_delta,
+                Photons::Indirect => false,
+            };
+            if delta_bounce && caustic {
+                // A caustic onto the previous vertex: the photons' part.
                 break;
             }
             ctx = ctx.following(bs.lobe);
@@ -481,6 +535,7 @@ impl Sppm {
         grid: &Grid,
         points: &[Option<VisiblePoint<S>>],
         sums: &Sums,
+        later: Option<(&Grid, &[Option<VisiblePoint<S>>], &Sums)>,
     ) {
         let mut sampler = Sampler::start(spec, index, iteration, 0);
         let mut wl = wl;
@@ -515,7 +570,7 @@ impl Sppm {
                 dispersed = true;
             }
             let deposit = match self.photons {
-                Photons::Caustics => after_delta,
+                Photons::Caustics | Photons::AllCaustics => after_delta,
                 Photons::Indirect => segments >= 2,
                 Photons::None => false,
             };
@@ -525,6 +580,11 @@ impl Sppm {
                 self.deposit(
                     scene, &si, ray.d, segments, beta, dispersed, seed, grid, points, sums,
                 );
+                if let Some((grid, points, sums)) = later {
+                    self.deposit(
+                        scene, &si, ray.d, segments, beta, dispersed, !seed, grid, points, sums,
+                    );
+                }
             }
             if segments.saturating_add(2) > self.max_depth {
                 break;
@@ -727,6 +787,13 @@ pub fn render<S: Spectrum>(
         (0.0, Some(Sppm::pixel_footprint(scene)))
     };
     let r_fallback = sppm.radius(scene) as f64;
+    // `photons = all_caustics`: the later vertices' first radius (set in
+    // the first iteration, from its visible points' radii).
+    let mut vertex_radius = if sppm.initial_radius > 0.0 {
+        sppm.vertex_radius_scale as f64 * sppm.initial_radius as f64
+    } else {
+        0.0
+    };
     let mut stats = vec![
         PixelStats {
             radius: r0,
@@ -763,21 +830,33 @@ pub fn render<S: Spectrum>(
                 + (mix64(scene.sampler.seed) >> 11) as f64 / (1u64 << 53) as f64)
                 % 1.0) as f32;
             let wl = S::sample_wavelengths(u.min(1.0 - f32::EPSILON));
-            let (direct, points): (Vec<Rgb>, Vec<Option<VisiblePoint<S>>>) = pool.install(|| {
+            type Paths<S> = (Vec<Rgb>, Vec<(Option<VisiblePoint<S>>, Vec<VisiblePoint<S>>)>);
+            let (direct, points): Paths<S> = pool.install(|| {
                 (0..pixels)
                     .into_par_iter()
                     .with_min_len(64)
                     .map(|i| {
-                        sppm.camera_path::<S>(
+                        let mut later = Vec::new();
+                        let (l, vp) = sppm.camera_path::<S>(
                             scene,
                             ox + (i % w as usize) as u32,
                             oy + (i / w as usize) as u32,
                             iteration,
                             wl,
-                        )
+                            &mut later,
+                        );
+                        (l, (vp, later))
                     })
                     .unzip()
             });
+            // The later vertices' gather points in pixel order, with their pixels.
+            let (points, later): (Vec<_>, Vec<_>) = points.into_iter().unzip();
+            let later_pixel: Vec<u32> = later
+                .iter()
+                .enumerate()
+                .flat_map(|(i, v)| std::iter::repeat_n(i as u32, v.len()))
+                .collect();
+            let later: Vec<Option<VisiblePoint<S>>> = later.into_iter().flatten().map(Some).collect();
             if let Some((offset, spread)) = footprint {
                 for (st, vp) in stats.iter_mut().zip(&points) {
                     if let (0.0, Some(vp)) = (st.radius, vp) {
@@ -790,8 +869,31 @@ pub fn render<S: Spectrum>(
                 phi: (0..pixels).map(|_| Default::default()).collect(),
                 count: (0..pixels).map(|_| AtomicU32::new(0)).collect(),
             };
-            let grid = if sppm.photons == Photons::None { None } else { Grid::build(&points, &stats) };
+            if vertex_radius == 0.0 && sppm.photons == Photons::AllCaustics {
+                let radii: Vec<f64> = stats.iter().map(|st| st.radius).filter(|&r| r > 0.0).collect();
+                let mean = radii.iter().sum::<f64>() / radii.len().max(1) as f64;
+                vertex_radius = sppm.vertex_radius_scale as f64 * if mean > 0.0 { mean } else { r_fallback };
+            }
+            // The later vertices' radius: VCM's schedule, r² ∝ k^(α − 1) in
+            // the k-th iteration, so that bias and variance both vanish.
+            let later_r = vertex_radius * ((iteration + 1) as f64).powf((sppm.alpha as f64 - 1.0) / 2.0);
+            let later_sums = Sums {
+                phi: (0..later.len()).map(|_| Default::default()).collect(),
+                count: (0..later.len()).map(|_| AtomicU32::new(0)).collect(),
+            };
+            let later_grid = pool.install(|| Grid::from_entries(
+                later
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(j, vp)| {
+                        let r = later_r as f32;
+                        vp.as_ref().map(|vp| (GridEntry { p: vp.si.p, r2: r * r, pixel: j as u32 }, r))
+                    })
+                    .collect(),
+            ));
+            let grid = if sppm.photons == Photons::None { None } else { pool.install(|| Grid::build(&points, &stats)) };
             if let Some(grid) = grid {
+                let later = later_grid.as_ref().map(|g| (g, &later[..], &later_sums));
                 pool.install(|| {
                     (0..photon_count)
                         .into_par_iter()
@@ -806,9 +908,21 @@ pub fn render<S: Spectrum>(
                                 &grid,
                                 &points,
                                 &sums,
+                                later,
                             );
                         })
                 });
+            }
+            // The later vertices' photons: each iteration's own density
+            // estimate, added to its pixel's path-traced light.
+            let later_scale = 1.0 / (FIXED_SCALE * photon_count.max(1) as f64 * std::f64::consts::PI * later_r * later_r);
+            let mut later_light = vec![[0.0f64; 3]; if later_pixel.is_empty() { 0 } else { pixels }];
+            if later_scale.is_finite() {
+                for (j, &i) in later_pixel.iter().enumerate() {
+                    for c in 0..3 {
+                        later_light[i as usize][c] += later_sums.phi[j][c].load(Ordering::Relaxed) as f64 * later_scale;
+                    }
+                }
             }
             let alpha = sppm.alpha as f64;
             pool.install(|| {
@@ -820,6 +934,11 @@ pub fn render<S: Spectrum>(
                         if d.is_finite() {
                             for c in 0..3 {
                                 st.direct[c] += d[c] as f64;
+                            }
+                        }
+                        if let Some(light) = later_light.get(i) {
+                            for c in 0..3 {
+                                st.direct[c] += light[c];
                             }
                         }
                         let m = sums.count[i].load(Ordering::Relaxed) as f64;
