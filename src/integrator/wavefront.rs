@@ -108,7 +108,8 @@ use std::ops::Range;
 use std::sync::OnceLock;
 
 /// Most triangles of an area light whose corners the next-event stage
-/// copies into a table of its own (48 bytes a triangle, per worker's tile).
+/// copies into a table of its own (48 bytes a triangle and 4 of its CDF, per
+/// worker's tile).
 const LIGHT_TABLE_TRIANGLES: usize = 1024;
 
 /// Paths per batch (unless `SNELL_WAVEFRONT_BATCH` says otherwise).
@@ -291,7 +292,7 @@ enum SurfaceNee {
 }
 
 /// Whether an emitter is an area light the SIMD kernel samples exactly as
-/// `AreaLight::sample_direct` would (see [`kernel_area_light`]).
+/// `AreaLight::sample_direct` would (see [`kernel_samples`]).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 enum KernelLight {
     /// Not one: sampled by the scalar code.
