@@ -174,6 +174,12 @@ impl Mesh {
         self.area_distribution().sample_reuse(u)
     }
 
+    /// The CDF [`Mesh::sample_triangle`] walks (triangles by area), for a
+    /// copy kept next to the triangles' corners.
+    pub fn triangle_cdf(&self) -> &[f32] {
+        self.area_distribution().cdf()
+    }
+
     pub fn vertices(&self, i: usize) -> [Vec3; 3] {
         let [a, b, c] = self.triangles[i];
         [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]

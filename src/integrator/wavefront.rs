@@ -88,8 +88,9 @@ use super::path::PathTracer;
 use crate::bsdf::{BsdfContext, Lobe};
 use super::kernels::{self, lane_vec3, AreaChunk, DiffuseChunk, LANES};
 use crate::bsdf::Bsdf;
+use crate::emitter::sphrect::Rectangle;
 use crate::emitter::{constant, Emitter, EmitterSample, ShadingPoint};
-use crate::math::sampling::square_to_uniform_sphere;
+use crate::math::sampling::{sample_cdf_reuse, square_to_uniform_sphere};
 use crate::geometry::ShapeGeometry;
 use crate::geometry::mesh::Mesh;
 use crate::film::Sink;
@@ -107,7 +108,8 @@ use std::ops::Range;
 use std::sync::OnceLock;
 
 /// Most triangles of an area light whose corners the next-event stage
-/// copies into a table of its own (48 bytes a triangle, per worker's tile).
+/// copies into a table of its own (48 bytes a triangle and 4 of its CDF, per
+/// worker's tile).
 const LIGHT_TABLE_TRIANGLES: usize = 1024;
 
 /// Paths per batch (unless `SNELL_WAVEFRONT_BATCH` says otherwise).
@@ -216,19 +218,18 @@ pub struct Queues<S: Spectrum> {
     /// Counting sort by BSDF.
     bsdf_of: Vec<u32>,
     counts: Vec<u32>,
-    /// Per emitter, whether [`kernels::area_light_directions`] may sample
-    /// it ([`KernelLight`]): the checks that do not depend on the shading
-    /// point, made once per scene rather than once per path and bounce.
-    kernel_lights: Vec<KernelLight>,
-    /// Per emitter the kernel samples, its triangles' corners and unit
-    /// normals if it has at most [`LIGHT_TABLE_TRIANGLES`], and 1 / its
-    /// area (empty and zero for the others): read once per scene instead
-    /// of through the mesh's index buffer per lane.
-    light_triangles: Vec<Vec<[Vec3; 4]>>,
-    light_inv_area: Vec<f32>,
-    /// Per shape, whether its BSDF (as `Scene::bsdf` picks it) has a
-    /// smooth lobe: next-event estimation happens there.
-    smooth_shape: Vec<bool>,
+    /// Per emitter, what next-event estimation reads of it for every
+    /// sample and what does not depend on the shading point
+    /// ([`LightEntry`]), made once per scene rather than once per path and
+    /// bounce.
+    lights: Vec<LightEntry>,
+    /// With one emitter, whether `Scene::select_emitter` picks it (it then
+    /// does not depend on the point); `None` with several.
+    one_emitter: Option<bool>,
+    /// Per shape, what next-event estimation does at its BSDF (as
+    /// `Scene::bsdf` picks it): nothing, or sample an emitter, and whether
+    /// the kernels shade the sample ([`SurfaceNee`]).
+    shape_nee: Vec<SurfaceNee>,
     /// The scene these tables were made for (its emitters' and shapes'
     /// addresses and counts): a worker's queues serve one render, this
     /// guards the rule.
@@ -256,8 +257,42 @@ struct AreaLane {
     shade: bool,
 }
 
+/// An emitter as next-event estimation meets it, made once per scene: the
+/// checks and values that do not depend on the shading point, side by side
+/// (each lane read them through the emitter, its shape, the mesh's lazily
+/// built CDF and its index and vertex buffers).
+#[derive(Clone, Debug)]
+struct LightEntry {
+    kind: KernelLight,
+    /// A rectangle's shape, for its test of being seen wide.
+    rect: Option<Rectangle>,
+    /// For a light the kernel samples with at most
+    /// [`LIGHT_TABLE_TRIANGLES`] triangles: the mesh's CDF by area and per
+    /// triangle its corners and unit normal (else empty: the mesh is read).
+    cdf: Vec<f32>,
+    triangles: Vec<[Vec3; 4]>,
+    /// 1 / the light's area (zero if the kernel does not sample it).
+    inv_area: f32,
+    /// Its radiance's channels where they are the same for every path (RGB
+    /// mode, which has no wavelengths; `None` otherwise).
+    radiance: Option<[f32; 4]>,
+}
+
+/// What next-event estimation does at a shape's BSDF.
+#[derive(Clone, Copy, Debug)]
+enum SurfaceNee {
+    /// Nothing: the BSDF has no smooth lobe.
+    Skip,
+    /// Samples an emitter, shaded by the scalar code.
+    Smooth,
+    /// A `diffuse` BSDF: samples of kernel lights are shaded by the kernels;
+    /// with its reflectance's channels where they are the same for every
+    /// lane (a constant colour in RGB mode).
+    Diffuse(Option<[f32; 4]>),
+}
+
 /// Whether an emitter is an area light the SIMD kernel samples exactly as
-/// `AreaLight::sample_direct` would (see [`kernel_area_light`]).
+/// `AreaLight::sample_direct` would (see [`kernel_samples`]).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 enum KernelLight {
     /// Not one: sampled by the scalar code.
@@ -303,10 +338,9 @@ impl<S: Spectrum> Default for Queues<S> {
             diffuse_weight: Vec::with_capacity(BATCH),
             bsdf_of: Vec::with_capacity(BATCH),
             counts: vec![],
-            kernel_lights: vec![],
-            light_triangles: vec![],
-            light_inv_area: vec![],
-            smooth_shape: vec![],
+            lights: vec![],
+            one_emitter: None,
+            shape_nee: vec![],
             tables_of: [0; 4],
         }
     }
@@ -530,37 +564,7 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     q.env_path.clear();
     let key = [scene.emitters.as_ptr() as usize, scene.emitters.len(), scene.shapes.as_ptr() as usize, scene.shapes.len()];
     if q.tables_of != key {
-        q.kernel_lights.clear();
-        q.kernel_lights.extend((0..scene.emitters.len()).map(|e| kernel_light(scene, e)));
-        q.light_triangles.clear();
-        q.light_inv_area.clear();
-        for (e, &kind) in q.kernel_lights.iter().enumerate() {
-            let mesh = match (kind, &scene.emitters[e]) {
-                (KernelLight::No, _) => None,
-                (_, Emitter::Area(a)) => match &scene.shapes[a.shape as usize].geometry {
-                    ShapeGeometry::Mesh(m) => Some(m),
-                    _ => None,
-                },
-                _ => None,
-            };
-            // (Small lights only: the table is made per tile.)
-            let small = mesh.filter(|m| m.triangles.len() <= LIGHT_TABLE_TRIANGLES);
-            q.light_triangles.push(small.map_or_else(Vec::new, |m| {
-                (0..m.triangles.len())
-                    .map(|t| {
-                        let [a, b, c] = m.vertices(t);
-                        [a, b, c, m.face_normal_at(t, b - a, c - a)]
-                    })
-                    .collect()
-            }));
-            q.light_inv_area.push(mesh.map_or(0.0, |m| 1.0 / m.area()));
-        }
-        q.smooth_shape.clear();
-        q.smooth_shape.extend(scene.shapes.iter().map(|sh| {
-            let Some(b) = scene.bsdfs.get(sh.bsdf as usize) else { return false };
-            let b = if sh.pass_through { b.surface() } else { b };
-            b.lobes().intersects(Lobe::SMOOTH)
-        }));
+        make_tables(scene, q);
         q.tables_of = key;
     }
     // Whether the kernels shade the samples at `diffuse` BSDFs (not where
@@ -573,6 +577,9 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     let live = std::mem::take(&mut q.live);
     // Kernel lanes the kernels do not shade (pass 2 takes them one by one).
     let mut unshaded = 0usize;
+    // The tables out of `q` for the loop (which lends `q` to the
+    // environment's lanes), back after it.
+    let (lights, shape_nee, one_emitter) = (std::mem::take(&mut q.lights), std::mem::take(&mut q.shape_nee), q.one_emitter);
     for &i in &live {
         let i = i as usize;
         let si = &q.si[i];
@@ -580,65 +587,85 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
             S::terminate_secondary(&mut q.wl[i]);
         }
         // As `scene.bsdf(si).lobes().intersects(Lobe::SMOOTH)`.
-        if q.smooth_shape.get(si.shape as usize).copied().unwrap_or(false) {
-            let u = q.sampler[i].next_2d();
-            let Some((index, pmf, ux)) = scene.select_emitter(u.x, &ShadingPoint::from(si)) else { continue };
-            if let Some(mesh) = kernel_area_light(scene, &q.kernel_lights, index, si.p) {
+        let nee = shape_nee.get(si.shape as usize).copied().unwrap_or(SurfaceNee::Skip);
+        if matches!(nee, SurfaceNee::Skip) {
+            continue;
+        }
+        let u = q.sampler[i].next_2d();
+        let selected = match one_emitter {
+            Some(true) => Some((0, 1.0, u.x)),
+            Some(false) => None,
+            None => scene.select_emitter(u.x, &ShadingPoint::from(si)),
+        };
+        let Some((index, pmf, ux)) = selected else { continue };
+        let Some(light) = lights.get(index) else { continue };
+        if kernel_samples(light, si.p) {
+            let (a, b, c, tri_n, ux) = if light.triangles.is_empty() {
+                let Some(mesh) = light_mesh(scene, index) else { continue };
                 let (tri, ux) = mesh.sample_triangle(ux);
-                let [a, b, c, tri_n] = match q.light_triangles.get(index).and_then(|t| t.get(tri)) {
-                    Some(&corners) => corners,
-                    None => {
-                        let [a, b, c] = mesh.vertices(tri);
-                        [a, b, c, mesh.face_normal_at(tri, b - a, c - a)]
-                    }
-                };
-                let k = q.area_meta.len();
-                if k % LANES == 0 && k / LANES == q.area.len() {
-                    q.area.push(AreaChunk::default());
-                }
-                let (ch, l) = (&mut q.area[k / LANES], k % LANES);
-                for (dst, src) in [(&mut ch.p, si.p), (&mut ch.n, si.n), (&mut ch.a, a), (&mut ch.b, b), (&mut ch.c, c), (&mut ch.tri_n, tri_n)] {
-                    dst[0][l] = src.x;
-                    dst[1][l] = src.y;
-                    dst[2][l] = src.z;
-                }
-                ch.u[0][l] = ux;
-                ch.u[1][l] = u.y;
-                ch.inv_area[l] = q.light_inv_area[index];
-                // At a `diffuse` BSDF the kernels shade the sample too.
-                let mut shade = false;
-                if let (true, Bsdf::Diffuse(b), Emitter::Area(light)) = (shade_diffuse, scene.bsdf(si), &scene.emitters[index]) {
-                    let wl = &q.wl[i];
-                    let refl = b.reflectance.eval_spectrum::<S>(si, wl).depolarize();
-                    let radiance: S = light.radiance.eval(wl);
-                    if let (Some(t), Some(r), Some(e)) = (q.throughput[i].to_channels4(), refl.to_channels4(), radiance.to_channels4()) {
-                        for c in 0..4 {
-                            ch.throughput[c][l] = t[c];
-                            ch.reflectance[c][l] = r[c];
-                            ch.radiance[c][l] = e[c];
-                        }
-                        ch.fn_[0][l] = si.frame.n.x;
-                        ch.fn_[1][l] = si.frame.n.y;
-                        ch.fn_[2][l] = si.frame.n.z;
-                        ch.wi_z[l] = si.wi.z;
-                        ch.pmf[l] = pmf;
-                        shade = true;
-                    }
-                }
-                unshaded += usize::from(!shade);
-                q.area_meta.push(AreaLane { path: i as u32, pmf, emitter: index as u32, shade });
-            } else if shade_diffuse && environment_lane(scene, q, i, index, pmf, Vec2::new(ux, u.y)) {
-                // In the environment kernels' chunks.
-            } else if let Some((es, ray)) = scene.sample_emitter_ray_from::<S>(&q.si[i], index, pmf, ux, u.y, &q.wl[i]) {
-                let Some(term) = bsdf_term(scene, &q.si[i], &es, &q.wl[i]) else { continue };
-                q.shadow_path.push(i as u32);
-                q.shadow_sample.push(es);
-                q.shadow_term.push(term);
-                q.shadow_ray.push(ray);
+                let [a, b, c] = mesh.vertices(tri);
+                (a, b, c, mesh.face_normal_at(tri, b - a, c - a), ux)
+            } else {
+                let (tri, ux) = sample_cdf_reuse(&light.cdf, ux);
+                let [a, b, c, n] = light.triangles[tri];
+                (a, b, c, n, ux)
+            };
+            let k = q.area_meta.len();
+            if k % LANES == 0 && k / LANES == q.area.len() {
+                q.area.push(AreaChunk::default());
             }
+            let (ch, l) = (&mut q.area[k / LANES], k % LANES);
+            for (dst, src) in [(&mut ch.p, si.p), (&mut ch.n, si.n), (&mut ch.a, a), (&mut ch.b, b), (&mut ch.c, c), (&mut ch.tri_n, tri_n)] {
+                dst[0][l] = src.x;
+                dst[1][l] = src.y;
+                dst[2][l] = src.z;
+            }
+            ch.u[0][l] = ux;
+            ch.u[1][l] = u.y;
+            ch.inv_area[l] = light.inv_area;
+            // At a `diffuse` BSDF the kernels shade the sample too (the
+            // reflectance and radiance as the table has them, else
+            // evaluated here).
+            let mut shade = false;
+            if let (true, SurfaceNee::Diffuse(refl)) = (shade_diffuse, nee) {
+                let wl = &q.wl[i];
+                let r = refl.or_else(|| match scene.bsdf(si) {
+                    Bsdf::Diffuse(b) => b.reflectance.eval_spectrum::<S>(si, wl).depolarize().to_channels4(),
+                    _ => None,
+                });
+                let e = light.radiance.or_else(|| match &scene.emitters[index] {
+                    Emitter::Area(light) => light.radiance.eval::<S>(wl).to_channels4(),
+                    _ => None,
+                });
+                if let (Some(t), Some(r), Some(e)) = (q.throughput[i].to_channels4(), r, e) {
+                    for c in 0..4 {
+                        ch.throughput[c][l] = t[c];
+                        ch.reflectance[c][l] = r[c];
+                        ch.radiance[c][l] = e[c];
+                    }
+                    ch.fn_[0][l] = si.frame.n.x;
+                    ch.fn_[1][l] = si.frame.n.y;
+                    ch.fn_[2][l] = si.frame.n.z;
+                    ch.wi_z[l] = si.wi.z;
+                    ch.pmf[l] = pmf;
+                    shade = true;
+                }
+            }
+            unshaded += usize::from(!shade);
+            q.area_meta.push(AreaLane { path: i as u32, pmf, emitter: index as u32, shade });
+        } else if shade_diffuse && environment_lane(scene, q, i, index, pmf, Vec2::new(ux, u.y)) {
+            // In the environment kernels' chunks.
+        } else if let Some((es, ray)) = scene.sample_emitter_ray_from::<S>(&q.si[i], index, pmf, ux, u.y, &q.wl[i]) {
+            let Some(term) = bsdf_term(scene, &q.si[i], &es, &q.wl[i]) else { continue };
+            q.shadow_path.push(i as u32);
+            q.shadow_sample.push(es);
+            q.shadow_term.push(term);
+            q.shadow_ray.push(ray);
         }
     }
     q.live = live;
+    q.lights = lights;
+    q.shape_nee = shape_nee;
     // Pass 2: the kernels; for the lanes they did not shade, the radiance
     // and the selection divided in as `AreaLight::sample_direct` and
     // `Scene::sample_emitter_ray` do, and their shadow rays join the scalar
@@ -869,29 +896,80 @@ fn kernel_light(scene: &Scene, index: usize) -> KernelLight {
     if a.rect.is_some() { KernelLight::Rect } else { KernelLight::Mesh }
 }
 
-/// The mesh of emitter `index` if [`kernels::area_light_directions`]
-/// samples it from `p` exactly as `AreaLight::sample_direct` would: an
-/// emitter [`kernel_light`] accepts (`table`), and a rectangle not seen
-/// wide from `p`. One seen wide is sampled by solid angle (or, where its
-/// spherical rectangle fails, by area) by the scalar code, which decides
-/// between the two itself: deciding here too computed the spherical
-/// rectangle twice.
-#[inline]
-fn kernel_area_light<'s>(scene: &'s Scene, table: &[KernelLight], index: usize, p: Vec3) -> Option<&'s Mesh> {
-    let kind = *table.get(index)?;
-    if kind == KernelLight::No {
-        return None;
+/// The per-scene tables of next-event estimation: per emitter its
+/// [`LightEntry`], whether a lone emitter is picked, and per shape its
+/// [`SurfaceNee`].
+fn make_tables<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
+    let wl = S::sample_wavelengths(0.5);
+    q.lights.clear();
+    for e in 0..scene.emitters.len() {
+        let kind = kernel_light(scene, e);
+        let mesh = if kind == KernelLight::No { None } else { light_mesh(scene, e) };
+        let area_light = match &scene.emitters[e] {
+            Emitter::Area(a) => Some(a),
+            _ => None,
+        };
+        // (Small lights only: the table is made per tile.)
+        let small = mesh.filter(|m| m.triangles.len() <= LIGHT_TABLE_TRIANGLES);
+        q.lights.push(LightEntry {
+            kind,
+            rect: area_light.and_then(|a| a.rect),
+            cdf: small.map_or_else(Vec::new, |m| m.triangle_cdf().to_vec()),
+            triangles: small.map_or_else(Vec::new, |m| {
+                (0..m.triangles.len())
+                    .map(|t| {
+                        let [a, b, c] = m.vertices(t);
+                        [a, b, c, m.face_normal_at(t, b - a, c - a)]
+                    })
+                    .collect()
+            }),
+            inv_area: mesh.map_or(0.0, |m| 1.0 / m.area()),
+            // Without wavelengths the radiance is one colour for all paths.
+            radiance: area_light.filter(|_| !S::SPECTRAL).and_then(|a| a.radiance.eval::<S>(&wl).to_channels4()),
+        });
     }
-    let Emitter::Area(a) = &scene.emitters[index] else { return None };
-    if kind == KernelLight::Rect {
-        if let Some(r) = &a.rect {
-            if r.seen_wide(p) {
-                return None;
-            }
+    // With one emitter the choice does not depend on the point or the
+    // sample (`LightSelector::select`).
+    q.one_emitter = (scene.emitters.len() == 1).then(|| scene.select_emitter(0.0, &ShadingPoint::at(Vec3::ZERO)).is_some());
+    q.shape_nee.clear();
+    q.shape_nee.extend(scene.shapes.iter().map(|sh| {
+        let Some(b) = scene.bsdfs.get(sh.bsdf as usize) else { return SurfaceNee::Skip };
+        let b = if sh.pass_through { b.surface() } else { b };
+        if !b.lobes().intersects(Lobe::SMOOTH) {
+            return SurfaceNee::Skip;
         }
-    }
-    let ShapeGeometry::Mesh(m) = &scene.shapes[a.shape as usize].geometry else { return None };
+        match b {
+            // A constant colour is the same for every lane in RGB, where
+            // there are no wavelengths for it to depend on.
+            Bsdf::Diffuse(d) => SurfaceNee::Diffuse(match d.reflectance {
+                Texture::Constant(..) if !S::SPECTRAL => d.reflectance.eval_spectrum::<S>(&SurfaceInteraction::EMPTY, &wl).depolarize().to_channels4(),
+                _ => None,
+            }),
+            _ => SurfaceNee::Smooth,
+        }
+    }));
+}
+
+/// The mesh emitter `index` lies on, if it is an area light on one.
+fn light_mesh(scene: &Scene, index: usize) -> Option<&Mesh> {
+    let Emitter::Area(a) = &scene.emitters[index] else { return None };
+    let ShapeGeometry::Mesh(m) = &scene.shapes.get(a.shape as usize)?.geometry else { return None };
     Some(m)
+}
+
+/// Whether [`kernels::area_light_directions`] samples `light` from `p`
+/// exactly as `AreaLight::sample_direct` would: an emitter
+/// [`kernel_light`] accepts, and a rectangle not seen wide from `p`. One
+/// seen wide is sampled by solid angle (or, where its spherical rectangle
+/// fails, by area) by the scalar code, which decides between the two
+/// itself: deciding here too computed the spherical rectangle twice.
+#[inline(always)]
+fn kernel_samples(light: &LightEntry, p: Vec3) -> bool {
+    match light.kind {
+        KernelLight::No => false,
+        KernelLight::Mesh => true,
+        KernelLight::Rect => light.rect.is_none_or(|r| !r.seen_wide(p)),
+    }
 }
 
 /// Stage 4: BSDF sampling of the live paths grouped by BSDF, the next

@@ -133,15 +133,28 @@ impl DiscreteDistribution {
     /// Returns the index and the sample re-scaled to [0,1) within that bin.
     #[inline]
     pub fn sample_reuse(&self, u: f32) -> (usize, f32) {
-        let n = self.cdf.len();
-        let i = self.cdf.partition_point(|&c| c <= u).min(n - 1);
-        // The bin's lower end without a branch on i (for a few bins, as an
-        // emitting rectangle's two triangles, it is a coin flip).
-        let lo = self.cdf[i.saturating_sub(1)] * (i as f32).min(1.0);
-        let w = self.cdf[i] - lo;
-        let r = if w > 0.0 { ((u - lo) / w).clamp(0.0, 1.0 - f32::EPSILON / 2.0) } else { 0.0 };
-        (i, r)
+        sample_cdf_reuse(&self.cdf, u)
     }
+
+    /// The normalised cumulative weights (for callers that keep a copy next
+    /// to their own per-bin data and sample it with [`sample_cdf_reuse`]).
+    pub fn cdf(&self) -> &[f32] {
+        &self.cdf
+    }
+}
+
+/// [`DiscreteDistribution::sample_reuse`] on a copy of its CDF (not empty):
+/// the bin for `u` and `u` re-scaled to [0,1) within it.
+#[inline]
+pub fn sample_cdf_reuse(cdf: &[f32], u: f32) -> (usize, f32) {
+    let n = cdf.len();
+    let i = cdf.partition_point(|&c| c <= u).min(n - 1);
+    // The bin's lower end without a branch on i (for a few bins, as an
+    // emitting rectangle's two triangles, it is a coin flip).
+    let lo = cdf[i.saturating_sub(1)] * (i as f32).min(1.0);
+    let w = cdf[i] - lo;
+    let r = if w > 0.0 { ((u - lo) / w).clamp(0.0, 1.0 - f32::EPSILON / 2.0) } else { 0.0 };
+    (i, r)
 }
 
 #[cfg(test)]
