@@ -767,6 +767,16 @@ pub fn render<S: Spectrum>(
     if S::POLARIZED {
         anyhow::bail!("sppm does not carry polarization; render it with --mode rgb or spectral");
     }
+    // Without a delta lobe in the scene no photon is a caustic: the later
+    // vertices would wait for photons that never come (the same image).
+    let no_caustics = !scene.bsdfs.iter().any(|b| b.lobes().intersects(Lobe::DELTA));
+    let visible_only;
+    let sppm = if sppm.photons == Photons::AllCaustics && no_caustics {
+        visible_only = Sppm { photons: Photons::Caustics, ..sppm.clone() };
+        &visible_only
+    } else {
+        sppm
+    };
     let iterations = scene.sampler.sample_count;
     let threads = crate::render::thread_count(options);
     let pool = crate::render::thread_pool(threads)?;
