@@ -14,7 +14,7 @@
 //!
 //! Nodes can also be stored quantized (`accel/quant.rs`, 96 instead of 224
 //! bytes, opt-in with `SNELL_NODES=quantized`); the traversal is then
-//! compiled once more for them (`closest::<_, true, _>`).
+//! compiled once more for them (`closest::<_, true, _, _>`).
 //!
 //! Memory per triangle: 8 bytes of reference, plus about 16 of nodes and
 //! leaves, plus 36 when the triangles are kept as lanes; the mesh itself
@@ -867,14 +867,12 @@ impl Accel {
     }
 
     /// The triangles `refs`, which are `tris[first..]`: loaded from the
-    /// stored lanes, or gathered from the meshes. Lanes past `refs.len()`
-    /// hold other triangles or other floats: callers mask them out.
+    /// stored lanes (`PACKED`, as `keeps_packets`), or gathered from the
+    /// meshes. Lanes past `refs.len()` hold other triangles or other
+    /// floats: callers mask them out.
     #[inline(always)]
-    fn packet<V: Lanes>(&self, first: usize, refs: &[TriRef]) -> TriPacket<V> {
-        if self.lanes.f.is_empty() {
-            return self.gather(refs);
-        }
-        self.lanes_at(first, refs.len())
+    fn packet<const PACKED: bool, V: Lanes>(&self, first: usize, refs: &[TriRef]) -> TriPacket<V> {
+        if PACKED { self.lanes_at(first, refs.len()) } else { self.gather(refs) }
     }
 
     /// The stored lanes of `tris[first..first + n]` (`first + n` ≤
@@ -1165,40 +1163,60 @@ impl Accel {
         }
     }
 
-    // Two copies of each traversal per level: without instances the
-    // instance code is compiled out, so a scene without them runs as before.
+    // A copy of each traversal per level and per kind of BVH (instances or
+    // not, quantized nodes or not, triangles kept as lanes or gathered):
+    // what the BVH holds is decided here once per ray, not at every node
+    // or leaf, and the code of what it lacks is compiled out.
     #[inline(always)]
     fn closest_lanes<V: Lanes>(&self, ray: &Ray) -> Option<Hit> {
         let mut best = Closest::new(ray.tmax, 0);
-        match (self.instances.is_empty(), self.qnodes.is_empty()) {
-            (true, true) => self.closest::<false, false, V>(ray, &mut best),
-            (false, true) => self.closest::<true, false, V>(ray, &mut best),
-            (true, false) => self.closest::<false, true, V>(ray, &mut best),
-            (false, false) => self.closest::<true, true, V>(ray, &mut best),
+        match (self.instances.is_empty(), self.qnodes.is_empty(), self.keeps_packets()) {
+            (true, true, true) => self.closest::<false, false, true, V>(ray, &mut best),
+            (true, true, false) => self.closest::<false, false, false, V>(ray, &mut best),
+            (false, true, true) => self.closest::<true, false, true, V>(ray, &mut best),
+            (false, true, false) => self.closest::<true, false, false, V>(ray, &mut best),
+            (true, false, true) => self.closest::<false, true, true, V>(ray, &mut best),
+            (true, false, false) => self.closest::<false, true, false, V>(ray, &mut best),
+            (false, false, true) => self.closest::<true, true, true, V>(ray, &mut best),
+            (false, false, false) => self.closest::<true, true, false, V>(ray, &mut best),
         }
         best.hit()
     }
 
     #[inline(always)]
     fn occluded_lanes<V: Lanes>(&self, ray: &Ray) -> bool {
-        match (self.instances.is_empty(), self.qnodes.is_empty()) {
-            (true, true) => self.any_hit::<false, false, V>(ray),
-            (false, true) => self.any_hit::<true, false, V>(ray),
-            (true, false) => self.any_hit::<false, true, V>(ray),
-            (false, false) => self.any_hit::<true, true, V>(ray),
+        match (self.instances.is_empty(), self.qnodes.is_empty(), self.keeps_packets()) {
+            (true, true, true) => self.any_hit::<false, false, true, V>(ray),
+            (true, true, false) => self.any_hit::<false, false, false, V>(ray),
+            (false, true, true) => self.any_hit::<true, false, true, V>(ray),
+            (false, true, false) => self.any_hit::<true, false, false, V>(ray),
+            (true, false, true) => self.any_hit::<false, true, true, V>(ray),
+            (true, false, false) => self.any_hit::<false, true, false, V>(ray),
+            (false, false, true) => self.any_hit::<true, true, true, V>(ray),
+            (false, false, false) => self.any_hit::<true, true, false, V>(ray),
         }
     }
 
-    /// The traversal of an instanced group, whose node format may differ
-    /// from the top level's.
+    /// The traversal of an instanced group, whose node format and triangle
+    /// storage may differ from the top level's.
     #[inline(always)]
     fn group_closest<V: Lanes>(&self, ray: &Ray, best: &mut Closest) {
-        if self.qnodes.is_empty() { self.closest::<false, false, V>(ray, best) } else { self.closest::<false, true, V>(ray, best) }
+        match (self.qnodes.is_empty(), self.keeps_packets()) {
+            (true, true) => self.closest::<false, false, true, V>(ray, best),
+            (true, false) => self.closest::<false, false, false, V>(ray, best),
+            (false, true) => self.closest::<false, true, true, V>(ray, best),
+            (false, false) => self.closest::<false, true, false, V>(ray, best),
+        }
     }
 
     #[inline(always)]
     fn group_any_hit<V: Lanes>(&self, ray: &Ray) -> bool {
-        if self.qnodes.is_empty() { self.any_hit::<false, false, V>(ray) } else { self.any_hit::<false, true, V>(ray) }
+        match (self.qnodes.is_empty(), self.keeps_packets()) {
+            (true, true) => self.any_hit::<false, false, true, V>(ray),
+            (true, false) => self.any_hit::<false, false, false, V>(ray),
+            (false, true) => self.any_hit::<false, true, true, V>(ray),
+            (false, false) => self.any_hit::<false, true, false, V>(ray),
+        }
     }
 
     #[inline(never)]
@@ -1237,21 +1255,24 @@ impl Accel {
 
     /// Closest hit, improving on `best` (which it starts from); `INSTANCES`:
     /// this BVH may hold instances (whose groups are traced by the `false`
-    /// copy: groups do not nest); `Q`: its nodes are the quantized ones.
+    /// copy: groups do not nest); `Q`: its nodes are the quantized ones;
+    /// `PACKED`: it keeps its triangles as lanes (`keeps_packets`, which
+    /// the caller must have checked).
     #[inline(always)]
-    fn closest<const INSTANCES: bool, const Q: bool, V: Lanes>(&self, ray: &Ray, best: &mut Closest) {
+    fn closest<const INSTANCES: bool, const Q: bool, const PACKED: bool, V: Lanes>(&self, ray: &Ray, best: &mut Closest) {
         if if Q { self.qnodes.is_empty() } else { self.nodes.is_empty() } {
             return;
         }
         count!(stats::CLOSEST, stats::RAYS, 1);
-        self.closest_from::<INSTANCES, Q, V>(&RayData::<V>::new(ray), ray, best, 0, stats::CLOSEST);
+        self.closest_from::<INSTANCES, Q, PACKED, V>(&RayData::<V>::new(ray), ray, best, 0, stats::CLOSEST);
     }
 
     /// `closest` from node `start` down (a non-empty BVH), with the ray's
     /// lanes `r` made; `kind`: the `stats` counters it adds to.
     #[inline(always)]
-    fn closest_from<const INSTANCES: bool, const Q: bool, V: Lanes>(&self, r: &RayData<V>, ray: &Ray, best: &mut Closest, start: u32, kind: usize) {
+    fn closest_from<const INSTANCES: bool, const Q: bool, const PACKED: bool, V: Lanes>(&self, r: &RayData<V>, ray: &Ray, best: &mut Closest, start: u32, kind: usize) {
         let _ = kind;
+        debug_assert_eq!(PACKED, self.keeps_packets());
         // Entries: entry distance bits (non-negative floats order like
         // their bits) above the child code, so they sort as integers.
         let mut stack: [MaybeUninit<u64>; STACK] = [MaybeUninit::uninit(); STACK];
@@ -1308,7 +1329,7 @@ impl Accel {
                     continue;
                 }
             } else {
-                self.leaf_closest::<INSTANCES, V>(cur, r, ray, best, kind);
+                self.leaf_closest::<INSTANCES, PACKED, V>(cur, r, ray, best, kind);
             }
             // Pop the nearest pending node still in reach.
             loop {
@@ -1328,16 +1349,16 @@ impl Accel {
 
     /// The hits in leaf `cur` (a child word with `LEAF` set) on `ray`
     /// (lanes `r`) that beat `best`, into it; instances are traced into
-    /// their groups when `INSTANCES`. Shared by the single-ray and packet
-    /// closest hits.
+    /// their groups when `INSTANCES`; `PACKED` as `keeps_packets`. Shared
+    /// by the single-ray and packet closest hits.
     #[inline(always)]
-    fn leaf_closest<const INSTANCES: bool, V: Lanes>(&self, cur: u32, r: &RayData<V>, ray: &Ray, best: &mut Closest, kind: usize) {
+    fn leaf_closest<const INSTANCES: bool, const PACKED: bool, V: Lanes>(&self, cur: u32, r: &RayData<V>, ray: &Ray, best: &mut Closest, kind: usize) {
         let _ = kind;
         count!(kind, stats::LEAVES, 1);
         if cur & DIRECT != 0 {
-            let (p, n) = self.direct_packet::<V>(cur);
+            let (p, n) = self.direct_packet::<PACKED, V>(cur);
             count!(kind, stats::TRIS, n);
-            let key = |lane: usize| self.direct_key(cur, lane);
+            let key = |lane: usize| self.direct_key::<PACKED>(cur, lane);
             if let Some((lane, t, u, v)) = r.closest_in(&p, n, best, key) {
                 best.set(t, key(lane), u, v);
             }
@@ -1351,7 +1372,7 @@ impl Accel {
                 let tri = refs[lane];
                 tie_key(self.meshes[tri.mesh as usize].shape, tri.prim, NO_INSTANCE)
             };
-            if let Some((lane, t, u, v)) = r.closest_in(&self.packet::<V>(first, refs), refs.len(), best, key) {
+            if let Some((lane, t, u, v)) = r.closest_in(&self.packet::<PACKED, V>(first, refs), refs.len(), best, key) {
                 best.set(t, key(lane), u, v);
             }
         }
@@ -1377,20 +1398,23 @@ impl Accel {
         }
     }
 
+    /// Whether anything lies on `ray` before its tmax; the constants as for
+    /// `closest`.
     #[inline(always)]
-    fn any_hit<const INSTANCES: bool, const Q: bool, V: Lanes>(&self, ray: &Ray) -> bool {
+    fn any_hit<const INSTANCES: bool, const Q: bool, const PACKED: bool, V: Lanes>(&self, ray: &Ray) -> bool {
         if if Q { self.qnodes.is_empty() } else { self.nodes.is_empty() } {
             return false;
         }
         count!(stats::OCCLUDED, stats::RAYS, 1);
-        self.any_hit_from::<INSTANCES, Q, V>(&RayData::<V>::new(ray), ray, 0, stats::OCCLUDED)
+        self.any_hit_from::<INSTANCES, Q, PACKED, V>(&RayData::<V>::new(ray), ray, 0, stats::OCCLUDED)
     }
 
     /// `any_hit` from node `start` down (a non-empty BVH), with the ray's
     /// lanes `r` made; `kind`: the `stats` counters it adds to.
     #[inline(always)]
-    fn any_hit_from<const INSTANCES: bool, const Q: bool, V: Lanes>(&self, r: &RayData<V>, ray: &Ray, start: u32, kind: usize) -> bool {
+    fn any_hit_from<const INSTANCES: bool, const Q: bool, const PACKED: bool, V: Lanes>(&self, r: &RayData<V>, ray: &Ray, start: u32, kind: usize) -> bool {
         let _ = kind;
+        debug_assert_eq!(PACKED, self.keeps_packets());
         let tmax = ray.tmax;
         let mut stack: [MaybeUninit<u32>; STACK] = [MaybeUninit::uninit(); STACK];
         let mut sp = 0usize;
@@ -1420,7 +1444,7 @@ impl Accel {
                     }
                     continue;
                 }
-            } else if self.leaf_occludes::<INSTANCES, V>(cur, r, ray, tmax, kind) {
+            } else if self.leaf_occludes::<INSTANCES, PACKED, V>(cur, r, ray, tmax, kind) {
                 return true;
             }
             if sp == 0 {
@@ -1433,11 +1457,11 @@ impl Accel {
     }
 
     /// The triangles of `DIRECT` leaf `cur`, one a lane, and their count
-    /// (lanes past it hold other floats).
+    /// (lanes past it hold other floats); `PACKED` as `keeps_packets`.
     #[inline(always)]
-    fn direct_packet<V: Lanes>(&self, cur: u32) -> (TriPacket<V>, usize) {
+    fn direct_packet<const PACKED: bool, V: Lanes>(&self, cur: u32) -> (TriPacket<V>, usize) {
         let (first, n) = (((cur & !(LEAF | DIRECT)) >> 3) as usize, (cur & 7) as usize + 1);
-        let p = if self.keeps_packets() {
+        let p = if PACKED {
             self.lanes_at::<V>(first, n)
         } else {
             let m = &self.meshes[self.direct as usize];
@@ -1446,11 +1470,12 @@ impl Accel {
         (p, n)
     }
 
-    /// The tie key of triangle `lane` of `DIRECT` leaf `cur`.
+    /// The tie key of triangle `lane` of `DIRECT` leaf `cur`; `PACKED` as
+    /// `keeps_packets`.
     #[inline(always)]
-    fn direct_key(&self, cur: u32, lane: usize) -> u128 {
+    fn direct_key<const PACKED: bool>(&self, cur: u32, lane: usize) -> u128 {
         let first = ((cur & !(LEAF | DIRECT)) >> 3) as usize;
-        if self.keeps_packets() {
+        if PACKED {
             let tri = self.tris[first + lane];
             tie_key(self.meshes[tri.mesh as usize].shape, tri.prim, NO_INSTANCE)
         } else {
@@ -1460,13 +1485,14 @@ impl Accel {
 
     /// Whether anything in leaf `cur` (a child word with `LEAF` set) lies on
     /// `ray` (lanes `r`) before `tmax`; instances are traced into their
-    /// groups when `INSTANCES`. Shared by the single-ray and packet any-hits.
+    /// groups when `INSTANCES`; `PACKED` as `keeps_packets`. Shared by the
+    /// single-ray and packet any-hits.
     #[inline(always)]
-    fn leaf_occludes<const INSTANCES: bool, V: Lanes>(&self, cur: u32, r: &RayData<V>, ray: &Ray, tmax: f32, kind: usize) -> bool {
+    fn leaf_occludes<const INSTANCES: bool, const PACKED: bool, V: Lanes>(&self, cur: u32, r: &RayData<V>, ray: &Ray, tmax: f32, kind: usize) -> bool {
         let _ = kind;
         count!(kind, stats::LEAVES, 1);
         if cur & DIRECT != 0 {
-            let (p, n) = self.direct_packet::<V>(cur);
+            let (p, n) = self.direct_packet::<PACKED, V>(cur);
             count!(kind, stats::TRIS, n);
             return r.triangles::<false>(&p, tmax).1 & lanes_of(n) != 0;
         }
@@ -1474,7 +1500,7 @@ impl Accel {
         for (k, refs) in self.tris[leaf.tri_start as usize..leaf.tri_end as usize].chunks(PACKET).enumerate() {
             let first = leaf.tri_start as usize + k * PACKET;
             count!(kind, stats::TRIS, refs.len());
-            if r.triangles::<false>(&self.packet::<V>(first, refs), tmax).1 & lanes_of(refs.len()) != 0 {
+            if r.triangles::<false>(&self.packet::<PACKED, V>(first, refs), tmax).1 & lanes_of(refs.len()) != 0 {
                 return true;
             }
         }

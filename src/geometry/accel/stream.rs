@@ -142,12 +142,22 @@ impl Accel {
             }
             return;
         }
+        // The triangle storage decided once for the batch.
+        if self.keeps_packets() { self.closest_batch::<true, V>(rays, hits) } else { self.closest_batch::<false, V>(rays, hits) }
+    }
+
+    /// `closest_stream` in a BVH of full nodes without instances whose
+    /// triangles are kept as lanes (`PACKED`) or gathered.
+    #[inline(always)]
+    fn closest_batch<const PACKED: bool, V: Lanes>(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         for (rays, hits) in rays.chunks(RAYS).zip(hits.chunks_mut(RAYS)) {
             if coherent(rays) {
-                self.closest_packet::<V>(rays, hits);
+                self.closest_packet::<PACKED, V>(rays, hits);
             } else {
                 for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
-                    *hit = self.closest_lanes::<V>(ray);
+                    let mut best = Closest::new(ray.tmax, 0);
+                    self.closest::<false, false, PACKED, V>(ray, &mut best);
+                    *hit = best.hit();
                 }
             }
         }
@@ -163,7 +173,7 @@ impl Accel {
     /// answer independent of the visiting order, so it is the single-ray
     /// traversal's.
     #[inline(always)]
-    fn closest_packet<V: Lanes>(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+    fn closest_packet<const PACKED: bool, V: Lanes>(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         let n = rays.len();
         let lanes = PacketRays::<V>::new(rays);
         let slabs = PacketSlabs::new(&lanes);
@@ -195,7 +205,7 @@ impl Accel {
             if cur & (LEAF | DIRECT) == LEAF | DIRECT && splat_leaf(active, cur) {
                 // Triangles alone, reached by at least half as many rays
                 // as it holds: each triangle against all rays at once.
-                if self.direct_leaf_closest_rays::<V>(cur, &lanes, &mut best, active) {
+                if self.direct_leaf_closest_rays::<PACKED, V>(cur, &lanes, &mut best, active) {
                     for k in 0..n {
                         reach[k] = best[k].reach();
                     }
@@ -217,7 +227,7 @@ impl Accel {
                     // SAFETY: written just above or before (`made`).
                     let r = unsafe { rd[k].assume_init_ref() };
                     let before = best[k].t;
-                    self.closest_from::<false, false, V>(r, &rays[k], &mut best[k], cur, stats::CLOSEST_PACKET);
+                    self.closest_from::<false, false, PACKED, V>(r, &rays[k], &mut best[k], cur, stats::CLOSEST_PACKET);
                     if best[k].t != before {
                         reach[k] = best[k].reach();
                         changed = true;
@@ -275,7 +285,7 @@ impl Accel {
                     // SAFETY: written just above or before (`made`).
                     let r = unsafe { rd[k].assume_init_ref() };
                     let before = best[k].t;
-                    self.leaf_closest::<false, V>(cur, r, &rays[k], &mut best[k], stats::CLOSEST_PACKET);
+                    self.leaf_closest::<false, PACKED, V>(cur, r, &rays[k], &mut best[k], stats::CLOSEST_PACKET);
                     if best[k].t != before {
                         reach[k] = best[k].reach();
                         changed = true;
@@ -339,8 +349,15 @@ impl Accel {
             }
             return;
         }
+        if self.keeps_packets() { self.occluded_batch::<true, V>(rays, out) } else { self.occluded_batch::<false, V>(rays, out) }
+    }
+
+    /// `occluded_stream` in a BVH of full nodes without instances whose
+    /// triangles are kept as lanes (`PACKED`) or gathered.
+    #[inline(always)]
+    fn occluded_batch<const PACKED: bool, V: Lanes>(&self, rays: &[Ray], out: &mut [bool]) {
         for (rays, out) in rays.chunks(RAYS).zip(out.chunks_mut(RAYS)) {
-            let m = self.occluded_packet::<V>(rays);
+            let m = self.occluded_packet::<PACKED, V>(rays);
             for (k, o) in out.iter_mut().enumerate() {
                 *o = m & (1 << k) != 0;
             }
@@ -350,7 +367,7 @@ impl Accel {
     /// Any-hit of up to 8 rays as a packet (a BVH without instances); the
     /// mask of the occluded ones.
     #[inline(always)]
-    fn occluded_packet<V: Lanes>(&self, rays: &[Ray]) -> u32 {
+    fn occluded_packet<const PACKED: bool, V: Lanes>(&self, rays: &[Ray]) -> u32 {
         let n = rays.len();
         let lanes = PacketRays::<V>::new(rays);
         let slabs = PacketSlabs::new(&lanes);
@@ -377,7 +394,7 @@ impl Accel {
             if cur & (LEAF | DIRECT) == LEAF | DIRECT && splat_leaf(active, cur) {
                 // Triangles alone, reached by at least half as many rays
                 // as it holds: each triangle against all rays at once.
-                blocked |= self.direct_leaf_occludes_rays::<V>(cur, &lanes, tmax, active);
+                blocked |= self.direct_leaf_occludes_rays::<PACKED, V>(cur, &lanes, tmax, active);
                 if blocked == all {
                     return blocked;
                 }
@@ -398,9 +415,9 @@ impl Accel {
                     // SAFETY: written just above or before (`made`).
                     let r = unsafe { rd[k].assume_init_ref() };
                     let hit = if cur & LEAF != 0 {
-                        self.leaf_occludes::<false, V>(cur, r, &rays[k], rays[k].tmax, stats::OCCLUDED_PACKET)
+                        self.leaf_occludes::<false, PACKED, V>(cur, r, &rays[k], rays[k].tmax, stats::OCCLUDED_PACKET)
                     } else {
-                        self.any_hit_from::<false, false, V>(r, &rays[k], cur, stats::OCCLUDED_PACKET)
+                        self.any_hit_from::<false, false, PACKED, V>(r, &rays[k], cur, stats::OCCLUDED_PACKET)
                     };
                     if hit {
                         blocked |= 1 << k;
@@ -467,8 +484,8 @@ impl Accel {
     /// costs n tests this way, k tests ray by ray (and k rays' lanes made):
     /// `splat_leaf` chooses.
     #[inline(always)]
-    fn direct_leaf_occludes_rays<V: Lanes>(&self, cur: u32, rays: &PacketRays<V>, tmax: V, active: u32) -> u32 {
-        let (p, n) = self.direct_packet::<V>(cur);
+    fn direct_leaf_occludes_rays<const PACKED: bool, V: Lanes>(&self, cur: u32, rays: &PacketRays<V>, tmax: V, active: u32) -> u32 {
+        let (p, n) = self.direct_packet::<PACKED, V>(cur);
         count!(stats::OCCLUDED_PACKET, stats::LEAVES, active.count_ones());
         count!(stats::OCCLUDED_PACKET, stats::TRIS, n as u32 * active.count_ones());
         let f = lanes_by_triangle(&p);
@@ -494,8 +511,8 @@ impl Accel {
     /// far, which may have come nearer since the leaf began; a triangle it
     /// then drops is rounded beyond that hit, so it could not win.)
     #[inline(always)]
-    fn direct_leaf_closest_rays<V: Lanes>(&self, cur: u32, rays: &PacketRays<V>, best: &mut [Closest; RAYS], active: u32) -> bool {
-        let (p, n) = self.direct_packet::<V>(cur);
+    fn direct_leaf_closest_rays<const PACKED: bool, V: Lanes>(&self, cur: u32, rays: &PacketRays<V>, best: &mut [Closest; RAYS], active: u32) -> bool {
+        let (p, n) = self.direct_packet::<PACKED, V>(cur);
         count!(stats::CLOSEST_PACKET, stats::LEAVES, active.count_ones());
         count!(stats::CLOSEST_PACKET, stats::TRIS, n as u32 * active.count_ones());
         let f = lanes_by_triangle(&p);
@@ -514,7 +531,7 @@ impl Accel {
             }
             let inv = V::splat(1.0) / adet;
             let (t, u, v) = ((t * inv).to_array(), (u * inv).to_array(), (v * inv).to_array());
-            let key = self.direct_key(cur, i);
+            let key = self.direct_key::<PACKED>(cur, i);
             let mut took = false;
             while mask != 0 {
                 let k = mask.trailing_zeros() as usize;
@@ -857,12 +874,13 @@ mod tests {
     /// some lanes inactive; at every level.
     #[test]
     fn leaves_tested_over_rays_agree_with_rays_one_by_one() {
-        fn check<V: Lanes>(accel: &Accel, rng: &mut Pcg32) -> (usize, usize) {
+        fn check<const PACKED: bool, V: Lanes>(accel: &Accel, rng: &mut Pcg32) -> (usize, usize) {
+            assert_eq!(PACKED, accel.keeps_packets());
             let (mut hits, mut blocked) = (0, 0);
             let leaves: Vec<u32> = accel.nodes.iter().flat_map(|n| n.children).filter(|c| c & (LEAF | DIRECT) == LEAF | DIRECT).collect();
             assert!(leaves.len() > 50, "{} direct leaves", leaves.len());
             for &cur in &leaves {
-                let (p, n) = accel.direct_packet::<Portable>(cur);
+                let (p, n) = accel.direct_packet::<PACKED, Portable>(cur);
                 let f = lanes_by_triangle(&p);
                 let mut rays = vec![];
                 for k in 0..RAYS {
@@ -892,19 +910,19 @@ mod tests {
                         best[k] = Closest::new(rays[k].tmax, 0);
                     }
                     let mut one_by_one = best;
-                    accel.direct_leaf_closest_rays::<V>(cur, &lanes, &mut best, active);
+                    accel.direct_leaf_closest_rays::<PACKED, V>(cur, &lanes, &mut best, active);
                     let tmax = V::from_array(std::array::from_fn(|k| rays[k].tmax));
-                    let occluded = accel.direct_leaf_occludes_rays::<V>(cur, &lanes, tmax, active);
+                    let occluded = accel.direct_leaf_occludes_rays::<PACKED, V>(cur, &lanes, tmax, active);
                     for k in 0..RAYS {
                         let r = RayData::<V>::new(&rays[k]);
                         if active & (1 << k) == 0 {
                             assert!(!best[k].found && occluded & (1 << k) == 0);
                             continue;
                         }
-                        accel.leaf_closest::<false, V>(cur, &r, &rays[k], &mut one_by_one[k], stats::CLOSEST_PACKET);
+                        accel.leaf_closest::<false, PACKED, V>(cur, &r, &rays[k], &mut one_by_one[k], stats::CLOSEST_PACKET);
                         let key = |c: &Closest| (c.found, c.t.to_bits(), c.key, c.b1.to_bits(), c.b2.to_bits());
                         assert_eq!(key(&best[k]), key(&one_by_one[k]), "leaf {cur:#x} ray {k}");
-                        let single = accel.leaf_occludes::<false, V>(cur, &r, &rays[k], rays[k].tmax, stats::OCCLUDED_PACKET);
+                        let single = accel.leaf_occludes::<false, PACKED, V>(cur, &r, &rays[k], rays[k].tmax, stats::OCCLUDED_PACKET);
                         assert_eq!(occluded & (1 << k) != 0, single, "leaf {cur:#x} ray {k}: occlusion");
                         hits += best[k].found as usize;
                         blocked += single as usize;
@@ -915,8 +933,8 @@ mod tests {
         }
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx2,fma")]
-        fn check_avx(accel: &Accel, rng: &mut Pcg32) -> (usize, usize) {
-            check::<Avx>(accel, rng)
+        fn check_avx<const PACKED: bool>(accel: &Accel, rng: &mut Pcg32) -> (usize, usize) {
+            check::<PACKED, Avx>(accel, rng)
         }
         let mut rng = Pcg32::new(21, 4);
         let mut shapes = vec![shape(ShapeGeometry::Mesh(triangle_soup(&mut rng, 1500, 0.7)))];
@@ -925,12 +943,13 @@ mod tests {
         ordered.gather_triangles();
         ordered.leaf_order(&mut shapes, true);
         for accel in [&stored, &ordered] {
-            let (hits, blocked) = check::<Portable>(accel, &mut rng);
+            let packed = accel.keeps_packets();
+            let (hits, blocked) = if packed { check::<true, Portable>(accel, &mut rng) } else { check::<false, Portable>(accel, &mut rng) };
             assert!(hits > 1000 && blocked > 1000, "{hits} hits, {blocked} blocked");
             #[cfg(target_arch = "x86_64")]
             if SimdLevel::Avx2.supported() {
                 // SAFETY: the CPU has AVX2 and FMA.
-                let (hits, blocked) = unsafe { check_avx(accel, &mut rng) };
+                let (hits, blocked) = unsafe { if packed { check_avx::<true>(accel, &mut rng) } else { check_avx::<false>(accel, &mut rng) } };
                 assert!(hits > 1000 && blocked > 1000, "{hits} hits, {blocked} blocked");
             }
         }
