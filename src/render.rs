@@ -494,6 +494,7 @@ fn render_adaptive<S: Spectrum>(
     let mut active = vec![true; w * h];
     let mut counts = vec![0u32; w * h];
     let mut rounds: Vec<AdaptiveRound> = vec![];
+    let mut final_image = None;
     let bar = progress_bar(options, (w * h) as u64 * spp as u64);
     let start = Instant::now();
     let cpu_start = process_cpu_seconds();
@@ -538,16 +539,18 @@ fn render_adaptive<S: Spectrum>(
             samples: first.header.samples_taken + second.header.samples_taken,
         });
         let mut image = all.develop();
-        if end == spp || options.stopped() {
-            interrupted = end < spp;
-            image.channels.push(sample_counts(&counts));
-            on_pass(&adaptive_report(&rounds, &ends, start, &image, &all));
-            break;
-        }
-        let errors = smoothed_errors(&squared_errors(&image, &half.develop()), w, h);
-        active = still_active(&errors, &active, w, h, adaptive.threshold as f32);
         image.channels.push(sample_counts(&counts));
         on_pass(&adaptive_report(&rounds, &ends, start, &image, &all));
+        let last = end == spp || options.stopped();
+        if !last {
+            let errors = smoothed_errors(&squared_errors(&image, &half.develop()), w, h);
+            active = still_active(&errors, &active, w, h, adaptive.threshold as f32);
+        }
+        final_image = Some(image);
+        if last {
+            interrupted = end < spp;
+            break;
+        }
         if !active.contains(&true) {
             break;
         }
@@ -575,8 +578,16 @@ fn render_adaptive<S: Spectrum>(
         most_spp: counts.iter().copied().max().unwrap_or(0),
         rounds,
     });
-    let mut image = result.develop();
-    image.channels.push(sample_counts(&counts));
+    // The last round's image (`all` is merged only with complete rounds),
+    // unless the render stopped inside the first round.
+    let image = match final_image {
+        Some(image) => image,
+        None => {
+            let mut image = result.develop();
+            image.channels.push(sample_counts(&counts));
+            image
+        }
+    };
     Ok((image, stats, result))
 }
 
