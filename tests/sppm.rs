@@ -449,6 +449,25 @@ fn floor_under_water_in_a_sky_matches_the_closed_form() {
     }
 }
 
+const PATH_8: &str = r#"<integrator type="path"><integer name="max_depth" value="8"/></integrator>"#;
+
+/// `sppm` with `max_depth` 8 and photons carrying `photons`.
+fn sppm_8(photons: &str) -> String {
+    format!(
+        r#"<integrator type="sppm"><integer name="max_depth" value="8"/>
+           <string name="photons" value="{photons}"/></integrator>"#
+    )
+}
+
+/// The caustic box at 64² rendered by `integrator` with a box pixel filter
+/// (`sppm`'s own) at `spp` samples or iterations, 2 threads.
+fn caustic_box(integrator: &str, spp: u32) -> Image {
+    let scene_path = "scenes/caustic-cornell-box.xml";
+    let text = with_integrator(scene_path, integrator)
+        .replace(r#"<rfilter type="gaussian"/>"#, r#"<rfilter type="box"/>"#);
+    render(&load(scene_path, &text, &[("res", "64")], spp), 2)
+}
+
 /// The split adds up: on the caustic box, the camera paths' part
 /// (`photons = none`) plus the photons' part is the whole light, for both
 /// splits. The image means of `sppm` (`caustics`, `all_caustics` and `indirect`) equal the
@@ -458,23 +477,8 @@ fn floor_under_water_in_a_sky_matches_the_closed_form() {
 /// camera paths leave out — neither counted twice nor dropped.
 #[test]
 fn caustic_box_split_adds_up_to_path() {
-    let scene_path = "scenes/caustic-cornell-box.xml";
-    let box_filter = |text: String| text.replace(r#"<rfilter type="gaussian"/>"#, r#"<rfilter type="box"/>"#);
-    let path = box_filter(with_integrator(
-        scene_path,
-        r#"<integrator type="path"><integer name="max_depth" value="8"/></integrator>"#,
-    ));
-    let reference = mean(&render(&load(scene_path, &path, &[("res", "64")], 256), 2));
-    let sppm = |photons: &str| {
-        let text = with_integrator(
-            scene_path,
-            &format!(
-                r#"<integrator type="sppm"><integer name="max_depth" value="8"/>
-                   <string name="photons" value="{photons}"/></integrator>"#
-            ),
-        );
-        mean(&render(&load(scene_path, &text, &[("res", "64")], 64), 2))
-    };
+    let reference = mean(&caustic_box(PATH_8, 256));
+    let sppm = |photons: &str| mean(&caustic_box(&sppm_8(photons), 64));
     let luminance = |m: [f64; 3]| m[0] + m[1] + m[2];
     for photons in ["caustics", "all_caustics", "indirect"] {
         let m = sppm(photons);
@@ -498,22 +502,9 @@ fn caustic_box_split_adds_up_to_path() {
 /// iterations, about a third).
 #[test]
 fn all_caustics_gather_cuts_the_caustic_box_error() {
-    let scene_path = "scenes/caustic-cornell-box.xml";
-    let box_filter = |text: String| text.replace(r#"<rfilter type="gaussian"/>"#, r#"<rfilter type="box"/>"#);
-    let path = box_filter(with_integrator(
-        scene_path,
-        r#"<integrator type="path"><integer name="max_depth" value="8"/></integrator>"#,
-    ));
-    let reference = render(&load(scene_path, &path, &[("res", "64")], 1024), 2);
+    let reference = caustic_box(PATH_8, 1024);
     let error = |photons: &str| {
-        let text = with_integrator(
-            scene_path,
-            &format!(
-                r#"<integrator type="sppm"><integer name="max_depth" value="8"/>
-                   <string name="photons" value="{photons}"/></integrator>"#
-            ),
-        );
-        let img = render(&load(scene_path, &text, &[("res", "64")], 64), 2);
+        let img = caustic_box(&sppm_8(photons), 64);
         let n = img.pixels.len();
         img.pixels
             .iter()
