@@ -642,7 +642,10 @@ impl Sppm {
             if vp.si.n.dot(si.n).abs() < 0.1 {
                 continue;
             }
-            sums.count[i].fetch_add(1, Ordering::Relaxed);
+            // (The later vertices keep no count: their radius does not adapt.)
+            if let Some(count) = sums.count.get(i) {
+                count.fetch_add(1, Ordering::Relaxed);
+            }
             let wi = vp.si.to_local(-d);
             let cos = wi.z.abs();
             if !(cos > 1e-6) {
@@ -752,6 +755,8 @@ mod tests {
 /// One iteration's photon sums per pixel.
 struct Sums {
     phi: Vec<[AtomicI64; 3]>,
+    /// Photons counted per visible point, for its radius; empty for the
+    /// later vertices, whose radius follows a fixed schedule.
     count: Vec<AtomicU32>,
 }
 
@@ -880,17 +885,14 @@ pub fn render<S: Spectrum>(
                 count: (0..pixels).map(|_| AtomicU32::new(0)).collect(),
             };
             if vertex_radius == 0.0 && sppm.photons == Photons::AllCaustics {
-                let radii: Vec<f64> = stats.iter().map(|st| st.radius).filter(|&r| r > 0.0).collect();
-                let mean = radii.iter().sum::<f64>() / radii.len().max(1) as f64;
+                let (sum, n) = stats.iter().filter(|st| st.radius > 0.0).fold((0.0, 0usize), |(s, n), st| (s + st.radius, n + 1));
+                let mean = sum / n.max(1) as f64;
                 vertex_radius = sppm.vertex_radius_scale as f64 * if mean > 0.0 { mean } else { r_fallback };
             }
             // The later vertices' radius: VCM's schedule, r² ∝ k^(α − 1) in
             // the k-th iteration, so that bias and variance both vanish.
             let later_r = vertex_radius * ((iteration + 1) as f64).powf((sppm.alpha as f64 - 1.0) / 2.0);
-            let later_sums = Sums {
-                phi: (0..later.len()).map(|_| Default::default()).collect(),
-                count: (0..later.len()).map(|_| AtomicU32::new(0)).collect(),
-            };
+            let later_sums = Sums { phi: (0..later.len()).map(|_| Default::default()).collect(), count: vec![] };
             let later_grid = pool.install(|| Grid::from_entries(
                 later
                     .iter()
