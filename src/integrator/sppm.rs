@@ -24,7 +24,17 @@
 //! shared by all (`vertex_radius_scale` × the visible points' mean initial
 //! radius in the first iteration), shrunk as VCM shrinks its radius:
 //! r_k² = r_1² · k^(α − 1); each iteration's estimate there is added to
-//! the pixel's path-traced light.
+//! the pixel's path-traced light. With `photons = final_gather` (Jensen's
+//! final gather) the visible point gathers the caustic photons as with
+//! `caustics`, and the camera path's one smooth bounce from it finds a
+//! gather point x2 (if x2 has a smooth lobe; light leaving x2 by a delta
+//! lobe is a caustic at the visible point): there the emitted light and
+//! the direct light (emitter sampling and one BSDF sample of the smooth
+//! lobes, weighted by MIS) are path traced, and all photons that bounced
+//! at least once before x2 (caustics included) are gathered with the
+//! later vertices' radius of `all_caustics`; the path ends one vertex
+//! after x2. The photon map's blur is then seen only through a diffuse
+//! bounce, and the camera path's cost ends at two vertices.
 //!
 //! Each iteration (one per sample of the sampler: `sample_count` iterations)
 //!
@@ -71,8 +81,8 @@
 //! | `rr_depth` | integer | 5 | depth at which Russian roulette starts (camera and light paths each) |
 //! | `granularity` | integer | 0 | photons per unit of parallel work; 0 = automatic. No effect on the image |
 //! | `max_passes` | integer | -1 | iterations; -1 = the sampler's `sample_count` (a command-line sample count wins over both) |
-//! | `photons` | string | `caustics` | the light photons carry: `caustics` (arriving at the visible point straight from a delta bounce; the rest is path traced), `all_caustics` (arriving straight from a delta bounce at any smooth vertex of the camera path from the visible point on), `indirect` (everything that bounced before the visible point: classic SPPM, only direct light sampled there), `none` (no photons: the image without caustics, for measuring the split; not a complete image) |
-//! | `vertex_radius_scale` | float | 4 | `photons = all_caustics`: the radius at the camera path's later vertices in the first iteration, in units of the visible points' mean initial radius |
+//! | `photons` | string | `caustics` | the light photons carry: `caustics` (arriving at the visible point straight from a delta bounce; the rest is path traced), `all_caustics` (arriving straight from a delta bounce at any smooth vertex of the camera path from the visible point on), `indirect` (everything that bounced before the visible point: classic SPPM, only direct light sampled there), `final_gather` (caustics at the visible point; everything that bounced before the vertex after it gathered there: Jensen's final gather), `none` (no photons: the image without caustics, for measuring the split; not a complete image) |
+//! | `vertex_radius_scale` | float | 4 | `photons = all_caustics` or `final_gather`: the radius at the camera path's later vertices in the first iteration, in units of the visible points' mean initial radius |
 //! | `radius_footprints` | float | 1.5 | the automatic initial radius (`initial_radius` 0) in pixel footprints at each pixel's first visible point |
 //!
 //! ```xml
@@ -105,8 +115,9 @@
 //! - Memory: per pixel one visible point, its statistics and at most eight
 //!   grid entries ([`MEMORY_PER_PIXEL`] bytes in all); photons are not
 //!   stored, so memory does not grow with `photon_count`. With
-//!   `photons = all_caustics` each later vertex of an iteration's camera
-//!   paths takes as much again.
+//!   `photons = all_caustics` or `final_gather` each later vertex of an
+//!   iteration's camera paths takes as much again (`final_gather`: at
+//!   most one a pixel).
 
 use crate::bsdf::{BsdfContext, Lobe};
 use crate::film::{FilmState, Filter, Image, Sink};
@@ -144,7 +155,7 @@ pub struct Sppm {
     pub photons: Photons,
     /// The automatic initial radius in pixel footprints at the visible point.
     pub radius_footprints: f32,
-    /// `photons = all_caustics`: the first iteration's gather radius at the
+    /// `photons = all_caustics` or `final_gather`: the first iteration's gather radius at the
     /// camera path's later vertices, in units of the visible points' mean
     /// initial radius.
     pub vertex_radius_scale: f32,
@@ -160,21 +171,32 @@ pub enum Photons {
     AllCaustics,
     /// Photons after any bounce: all indirect light (classic SPPM).
     Indirect,
+    /// Jensen's final gather: caustic photons at the visible point, and
+    /// all photons that bounced at least once at the vertex after it,
+    /// where the camera path ends after one more direct-light estimate.
+    FinalGather,
     /// No photons: the image without the caustics (a diagnostic).
     None,
 }
 
 impl Photons {
-    pub const NAMES: [&'static str; 4] = ["caustics", "all_caustics", "indirect", "none"];
+    pub const NAMES: [&'static str; 5] = ["caustics", "all_caustics", "indirect", "final_gather", "none"];
 
     pub fn from_name(name: &str) -> Option<Photons> {
         match name {
             "caustics" => Some(Photons::Caustics),
             "all_caustics" => Some(Photons::AllCaustics),
             "indirect" => Some(Photons::Indirect),
+            "final_gather" => Some(Photons::FinalGather),
             "none" => Some(Photons::None),
             _ => None,
         }
+    }
+
+    /// Whether photons are gathered at camera-path vertices after the
+    /// visible point too (with the shared, scheduled radius).
+    pub fn gathers_later(self) -> bool {
+        matches!(self, Photons::AllCaustics | Photons::FinalGather)
     }
 }
 
@@ -394,6 +416,10 @@ impl Sppm {
     /// `photons = all_caustics` every non-delta vertex after the visible
     /// point is a gather point too, pushed onto `later`, and the path stops
     /// wherever a delta bounce follows a smooth one after the visible point.
+    /// With `photons = final_gather` the vertex after the visible point is
+    /// the gather point (pushed onto `later`) if it has a smooth lobe, else
+    /// the path stops there; it samples its smooth lobes only, and the path
+    /// stops at the vertex after it.
     fn camera_path<S: Spectrum>(
         &self,
         scene: &Scene,
@@ -441,7 +467,10 @@ impl Sppm {
                 l += beta * le * hit_weight(scene, &prev, prev_pdf, prev_delta, &si);
             }
             // Emitter sampling and photons each add at least one segment.
-            if depth >= self.max_depth || (after >= 1 && self.photons == Photons::Indirect) {
+            if depth >= self.max_depth
+                || (after >= 1 && self.photons == Photons::Indirect)
+                || (after >= 2 && self.photons == Photons::FinalGather)
+            {
                 break;
             }
             let bsdf = scene.bsdf(&si);
@@ -458,6 +487,17 @@ impl Sppm {
                 // Light arriving here straight from a delta bounce is the
                 // photons' (a photon adds at least one segment).
                 later.push(VisiblePoint { si: si.clone(), beta, wl, depth, distance });
+            }
+            if after == 1 && self.photons == Photons::FinalGather {
+                // The final gather's point: light that bounced before it
+                // is the photons', light straight from its delta lobes the
+                // visible point's caustic photons; its smooth lobes' direct
+                // light is sampled here, and the path ends one vertex on.
+                if !smooth {
+                    break;
+                }
+                later.push(VisiblePoint { si: si.clone(), beta, wl, depth, distance });
+                sample_ctx = ctx.with_lobes(Lobe::SMOOTH);
             }
             if vp.is_none() {
                 if !smooth && !delta {
@@ -498,7 +538,7 @@ impl Sppm {
             let delta_bounce = bs.lobe.intersects(Lobe::DELTA);
             let caustic = match self.photons {
                 // Onto the visible point (whose bounce is always smooth).
-                Photons::Caustics | Photons::None => after == 1,
+                Photons::Caustics | Photons::None | Photons::FinalGather => after == 1,
                 // Onto any smooth vertex from the visible point on.
                 Photons::AllCaustics => after >= 1 && !prev_delta,
                 Photons::Indirect => false,
@@ -569,18 +609,23 @@ impl Sppm {
                 S::terminate_secondary(&mut wl);
                 dispersed = true;
             }
-            let deposit = match self.photons {
-                Photons::Caustics | Photons::AllCaustics => after_delta,
-                Photons::Indirect => segments >= 2,
-                Photons::None => false,
+            // Whether the photon counts at the visible points and at the
+            // later gather points.
+            let (visible, at_later) = match self.photons {
+                Photons::Caustics | Photons::AllCaustics => (after_delta, after_delta),
+                Photons::Indirect => (segments >= 2, segments >= 2),
+                Photons::FinalGather => (after_delta, segments >= 2),
+                Photons::None => (false, false),
             };
-            if deposit && bsdf.lobes().intersects(Lobe::SMOOTH) {
+            if (visible || at_later) && bsdf.lobes().intersects(Lobe::SMOOTH) {
                 let seed =
                     mix64(((iteration as u64) << 32 | index as u64) ^ ((segments as u64) << 58));
-                self.deposit(
-                    scene, &si, ray.d, segments, beta, dispersed, seed, grid, points, sums,
-                );
-                if let Some((grid, points, sums)) = later {
+                if visible {
+                    self.deposit(
+                        scene, &si, ray.d, segments, beta, dispersed, seed, grid, points, sums,
+                    );
+                }
+                if let (true, Some((grid, points, sums))) = (at_later, later) {
                     self.deposit(
                         scene, &si, ray.d, segments, beta, dispersed, !seed, grid, points, sums,
                     );
@@ -884,7 +929,7 @@ pub fn render<S: Spectrum>(
                 phi: (0..pixels).map(|_| Default::default()).collect(),
                 count: (0..pixels).map(|_| AtomicU32::new(0)).collect(),
             };
-            if vertex_radius == 0.0 && sppm.photons == Photons::AllCaustics {
+            if vertex_radius == 0.0 && sppm.photons.gathers_later() {
                 let (sum, n) = stats.iter().filter(|st| st.radius > 0.0).fold((0.0, 0usize), |(s, n), st| (s + st.radius, n + 1));
                 let mean = sum / n.max(1) as f64;
                 vertex_radius = sppm.vertex_radius_scale as f64 * if mean > 0.0 { mean } else { r_fallback };
