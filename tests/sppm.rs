@@ -257,6 +257,13 @@ fn deterministic_across_threads_and_passes_all_caustics() {
     deterministic(&SPPM.replace("</integrator>", r#"<string name="photons" value="all_caustics"/></integrator>"#));
 }
 
+/// The same with Jensen's final gather (photons at the vertex after the
+/// visible point too).
+#[test]
+fn deterministic_across_threads_and_passes_final_gather() {
+    deterministic(&SPPM.replace("</integrator>", r#"<string name="photons" value="final_gather"/></integrator>"#));
+}
+
 fn deterministic(integrator: &str) {
     let text = with_integrator("scenes/caustic-cornell-box.xml", integrator);
     let scene = load(
@@ -334,6 +341,12 @@ fn bad_parameters_are_located_errors() {
             light,
             29,
             "all_caustics",
+        ),
+        (
+            r#"<integrator type="sppm"><string name="photons" value="gather"/></integrator>"#,
+            light,
+            29,
+            "final_gather",
         ),
         (
             r#"<integrator type="sppm"><float name="vertex_radius_scale" value="0"/></integrator>"#,
@@ -470,7 +483,8 @@ fn caustic_box(integrator: &str, spp: u32) -> Image {
 
 /// The split adds up: on the caustic box, the camera paths' part
 /// (`photons = none`) plus the photons' part is the whole light, for both
-/// splits. The image means of `sppm` (`caustics`, `all_caustics` and `indirect`) equal the
+/// splits. The image means of `sppm` (`caustics`, `all_caustics`, `indirect` and
+/// `final_gather`) equal the
 /// path tracer's within 1 % (measured: 0.3 %), and the camera part alone lacks the caustic
 /// light (5.3 % of the mean: the caustic under the glass and the light the
 /// gold sphere throws on the walls), so the photons carry exactly what the
@@ -480,7 +494,7 @@ fn caustic_box_split_adds_up_to_path() {
     let reference = mean(&caustic_box(PATH_8, 256));
     let sppm = |photons: &str| mean(&caustic_box(&sppm_8(photons), 64));
     let luminance = |m: [f64; 3]| m[0] + m[1] + m[2];
-    for photons in ["caustics", "all_caustics", "indirect"] {
+    for photons in ["caustics", "all_caustics", "indirect", "final_gather"] {
         let m = sppm(photons);
         for c in 0..3 {
             let rel = m[c] / reference[c] - 1.0;
@@ -518,4 +532,33 @@ fn all_caustics_gather_cuts_the_caustic_box_error() {
     let (visible, every) = (error("caustics"), error("all_caustics"));
     eprintln!("caustic box relMSE: caustics {visible:.3e}, all_caustics {every:.3e}");
     assert!(every < 0.5 * visible, "all_caustics {every:.3e} against caustics {visible:.3e}");
+}
+
+/// Jensen's final gather (`photons = final_gather`): the caustic photons at
+/// the visible point, all photons that bounced before the next vertex
+/// gathered there, and the camera path ends one vertex later. The camera
+/// paths' noise after the first diffuse bounce (the caustic box's light
+/// through the glass and off the gold sphere after a wall) becomes photon
+/// density, blurred once more by a diffuse bounce: against a 1024-spp
+/// path-traced reference, at equal iterations, its error is at most half
+/// that of gathering at the visible point only (measured: 64², 64
+/// iterations, 4.43e-3 against 1.28e-2).
+#[test]
+fn final_gather_cuts_the_caustic_box_error() {
+    let reference = caustic_box(PATH_8, 1024);
+    let error = |photons: &str| {
+        let img = caustic_box(&sppm_8(photons), 64);
+        let n = img.pixels.len();
+        img.pixels
+            .iter()
+            .zip(&reference.pixels)
+            .map(|(x, r)| {
+                (0..3).map(|c| ((x[c] - r[c]) as f64).powi(2) / ((r[c] as f64).powi(2) + 0.01)).sum::<f64>()
+            })
+            .sum::<f64>()
+            / (3 * n) as f64
+    };
+    let (visible, gather) = (error("caustics"), error("final_gather"));
+    eprintln!("caustic box relMSE: caustics {visible:.3e}, final_gather {gather:.3e}");
+    assert!(gather < 0.5 * visible, "final_gather {gather:.3e} against caustics {visible:.3e}");
 }
