@@ -485,7 +485,7 @@ fn caustic_box(integrator: &str, spp: u32) -> Image {
 /// (`photons = none`) plus the photons' part is the whole light, for both
 /// splits. The image means of `sppm` (`caustics`, `all_caustics`, `indirect` and
 /// `final_gather`) equal the
-/// path tracer's within 1 % (measured: 0.3 %), and the camera part alone lacks the caustic
+/// path tracer's within 1 % (measured: 0.4 % at most), and the camera part alone lacks the caustic
 /// light (5.3 % of the mean: the caustic under the glass and the light the
 /// gold sphere throws on the walls), so the photons carry exactly what the
 /// camera paths leave out — neither counted twice nor dropped.
@@ -542,7 +542,7 @@ fn all_caustics_gather_cuts_the_caustic_box_error() {
 /// density, blurred once more by a diffuse bounce: against a 1024-spp
 /// path-traced reference, at equal iterations, its error is at most half
 /// that of gathering at the visible point only (measured: 64², 64
-/// iterations, 4.43e-3 against 1.28e-2).
+/// iterations, 4.45e-3 against 1.28e-2).
 #[test]
 fn final_gather_cuts_the_caustic_box_error() {
     let reference = caustic_box(PATH_8, 1024);

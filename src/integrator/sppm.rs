@@ -82,7 +82,7 @@
 //! | `granularity` | integer | 0 | photons per unit of parallel work; 0 = automatic. No effect on the image |
 //! | `max_passes` | integer | -1 | iterations; -1 = the sampler's `sample_count` (a command-line sample count wins over both) |
 //! | `photons` | string | `caustics` | the light photons carry: `caustics` (arriving at the visible point straight from a delta bounce; the rest is path traced), `all_caustics` (arriving straight from a delta bounce at any smooth vertex of the camera path from the visible point on), `indirect` (everything that bounced before the visible point: classic SPPM, only direct light sampled there), `final_gather` (caustics at the visible point; everything that bounced before the vertex after it gathered there: Jensen's final gather), `none` (no photons: the image without caustics, for measuring the split; not a complete image) |
-//! | `vertex_radius_scale` | float | 4 | `photons = all_caustics` or `final_gather`: the radius at the camera path's later vertices in the first iteration, in units of the visible points' mean initial radius |
+//! | `vertex_radius_scale` | float | 4 (`final_gather`: 2) | `photons = all_caustics` or `final_gather`: the radius at the camera path's later vertices in the first iteration, in units of the visible points' mean initial radius |
 //! | `radius_footprints` | float | 1.5 | the automatic initial radius (`initial_radius` 0) in pixel footprints at each pixel's first visible point |
 //!
 //! ```xml
