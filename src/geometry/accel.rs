@@ -58,7 +58,7 @@ use build::{Aabb, Item, OTHER, PACKET};
 use quant::QNode;
 use glam::{Vec3, Vec3A};
 #[cfg(target_arch = "x86_64")]
-use simd::{Avx, Avx512};
+use simd::Avx;
 use simd::{Lanes, Portable};
 pub use simd::Level as SimdLevel;
 use stats::count;
@@ -575,13 +575,7 @@ impl<V: Lanes> RayData<V> {
             return None;
         }
         let inv = V::splat(1.0) / adet;
-        let t = t * inv;
-        // Mostly one lane is nearest, and nearer than `best`: found at
-        // once where the lanes can tell (AVX-512), else lane by lane.
-        if let Some(i) = t.unique_least_below(mask, best.t) {
-            return Some((i, t.lane(i), (u * inv).lane(i), (v * inv).lane(i)));
-        }
-        let (t, u, v) = (t.to_array(), u * inv, v * inv);
+        let (t, u, v) = ((t * inv).to_array(), u * inv, v * inv);
         // The leader so far: `best` itself (lane None), then lanes; its key
         // computed when a tie needs it.
         let (mut lane, mut lt, mut lk) = (None, best.t, Some(best.key));
@@ -1250,7 +1244,7 @@ impl Accel {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512dq,avx512bw")]
     fn closest_avx512(&self, ray: &Ray) -> Option<Hit> {
-        self.closest_lanes::<Avx512>(ray)
+        self.closest_lanes::<Avx>(ray)
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -1303,9 +1297,27 @@ impl Accel {
                     }
                     // Two or more: go to the nearest, push the others far
                     // to near so the nearest remaining pops first.
+                    let t = tnear.to_array();
                     let mut keys = [0u64; WIDTH];
-                    tnear.sorted_keys(mask, children, &mut keys);
-                    let k = mask.count_ones() as usize;
+                    let mut k = 0;
+                    let mut m = mask;
+                    while m != 0 {
+                        let i = m.trailing_zeros() as usize;
+                        m &= m - 1;
+                        let key = (t[i].to_bits() as u64) << 32 | children[i] as u64;
+                        // SAFETY: `k` counts the bits of `mask` taken so far,
+                        // and `mask` has one bit per child. (Lets the sort
+                        // below go without bounds checks.)
+                        unsafe { std::hint::assert_unchecked(k < WIDTH) };
+                        // Insertion sort, descending.
+                        let mut j = k;
+                        while j > 0 && keys[j - 1] < key {
+                            keys[j] = keys[j - 1];
+                            j -= 1;
+                        }
+                        keys[j] = key;
+                        k += 1;
+                    }
                     for &key in &keys[..k - 1] {
                         if !Q {
                             self.prefetch(key as u32);

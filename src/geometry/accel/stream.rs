@@ -38,7 +38,7 @@
 use super::stats::{self, count};
 use super::{Accel, Closest, DIRECT, Hit, LEAF, Lanes, Node, RayData, STACK, TriPacket, WIDTH, lanes_of, moller_trumbore};
 #[cfg(target_arch = "x86_64")]
-use super::{Avx, Avx512};
+use super::Avx;
 use super::{Portable, SimdLevel};
 use crate::geometry::Ray;
 use glam::Vec3A;
@@ -324,7 +324,7 @@ impl Accel {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512dq,avx512bw")]
     fn closest_stream_avx512(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        self.closest_stream::<Avx512>(rays, hits)
+        self.closest_stream::<Avx>(rays, hits)
     }
 
     #[cfg(target_arch = "x86_64")]
