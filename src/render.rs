@@ -127,15 +127,7 @@ fn estimate(scene: &Scene, polarized: bool, passes: bool) -> u64 {
     let threads = rayon::current_num_threads() as u64;
     let copies = if passes { 2 } else { 1 };
     if let Integrator::Sppm(sppm) = &scene.integrator {
-        // `all_caustics` gathers at the camera paths' later vertices too:
-        // counted as three a pixel (measured at max_depth 8: Cornell box 2.2,
-        // caustic box 1.6, glass of water 0.4).
-        // `final_gather` at most one a pixel.
-        let points = match sppm.photons {
-            crate::integrator::sppm::Photons::AllCaustics => 4,
-            crate::integrator::sppm::Photons::FinalGather => 2,
-            _ => 1,
-        };
+        let points = sppm.photons.points_per_pixel();
         return pixels * (points * crate::integrator::sppm::MEMORY_PER_PIXEL + 2 * 4 * 16 + 2 * 12);
     }
     if let Integrator::Particle(_) = &scene.integrator {

@@ -198,6 +198,26 @@ impl Photons {
     pub fn gathers_later(self) -> bool {
         matches!(self, Photons::AllCaustics | Photons::FinalGather)
     }
+
+    /// The default `vertex_radius_scale`: the final gather's point sees the
+    /// photons through one more diffuse bounce, where a smaller radius pays
+    /// (caustic box 64²: error 9.3e-4 at 2 against 9.7e-4 at 4 for 0.7× the
+    /// CPU).
+    pub fn default_vertex_radius_scale(self) -> f32 {
+        if self == Photons::FinalGather { 2.0 } else { 4.0 }
+    }
+
+    /// Gather points a pixel, for the memory estimate: `all_caustics`
+    /// gathers at every later smooth vertex (counted as three a pixel;
+    /// measured at max_depth 8: Cornell box 2.2, caustic box 1.6, glass of
+    /// water 0.4), `final_gather` at one at most.
+    pub fn points_per_pixel(self) -> u64 {
+        match self {
+            Photons::AllCaustics => 4,
+            Photons::FinalGather => 2,
+            _ => 1,
+        }
+    }
 }
 
 /// A pixel's visible point in one iteration: where its camera path met its

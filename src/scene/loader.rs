@@ -1273,13 +1273,11 @@ impl Loader {
                 let passes = props.int_checked("max_passes", -1, |v| v == -1 || (1..=MAX_SPP as i64).contains(&v), "-1 (the sampler's sample count) or between 1 and 2^24")?;
                 let photons = props.choice("photons", "caustics", &SppmPhotons::NAMES)?;
                 let radius_footprints = props.float_checked("radius_footprints", 1.5, |r| r > 0.0 && r <= 1e4, "a positive number of pixel footprints up to 10^4")?;
-                // The final gather's point sees the photons through one more
-                // diffuse bounce: a smaller radius pays there.
-                let scale_default = if photons == "final_gather" { 2.0 } else { 4.0 };
-                let vertex_radius_scale = props.float_checked("vertex_radius_scale", scale_default, |r| r > 0.0 && r <= 1e4, "a positive multiple of the visible points' radius up to 10^4")?;
+                let photons = SppmPhotons::from_name(photons).unwrap_or(SppmPhotons::Caustics);
+                let vertex_radius_scale = props.float_checked("vertex_radius_scale", photons.default_vertex_radius_scale(), |r| r > 0.0 && r <= 1e4, "a positive multiple of the visible points' radius up to 10^4")?;
                 Integrator::Sppm(Sppm {
                     vertex_radius_scale,
-                    photons: SppmPhotons::from_name(photons).unwrap_or(SppmPhotons::Caustics),
+                    photons,
                     radius_footprints,
                     photon_count: photon_count.max(0) as u32,
                     initial_radius,
