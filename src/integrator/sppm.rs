@@ -261,13 +261,22 @@ const FIXED_MAX: f64 = (1u64 << 40) as f64;
 
 /// Visible points of one iteration in a uniform grid of cells of twice the
 /// largest radius (a point's sphere overlaps at most 2 × 2 × 2 cells),
-/// hashed into as many buckets as there are points.
+/// hashed into as many buckets as there are points. Rebuilt in place each
+/// iteration: its buffers keep their capacity (allocating them anew cost
+/// page faults every iteration).
+#[derive(Default)]
 struct Grid {
     origin: Vec3,
     inv_cell: f32,
     /// Bucket b holds `items[starts[b]..starts[b + 1]]`.
     starts: Vec<u32>,
     items: Vec<GridEntry>,
+    /// The points to build from, each with its radius (filled by the caller
+    /// or [`Grid::build`]).
+    entries: Vec<(GridEntry, f32)>,
+    /// Scratch of the build: each entry's buckets, and the buckets' fill.
+    point_buckets: Vec<[u32; 8]>,
+    fill: Vec<u32>,
 }
 
 /// A visible point in a bucket: its position and squared radius beside its
@@ -281,57 +290,47 @@ struct GridEntry {
 }
 
 impl Grid {
-    fn build<S: Spectrum>(
-        points: &[Option<VisiblePoint<S>>],
-        stats: &[PixelStats],
-    ) -> Option<Grid> {
-        // The valid points with their radii, read once from the pixels.
-        let pts: Vec<(GridEntry, f32)> = points
-            .iter()
-            .zip(stats)
-            .enumerate()
-            .filter_map(|(i, (vp, st))| {
-                let r = st.radius as f32;
-                vp.as_ref().map(|vp| (GridEntry { p: vp.si.p, r2: r * r, pixel: i as u32 }, r))
-            })
-            .collect();
-        Grid::from_entries(pts)
+    /// Rebuilds the grid from the valid visible points with their pixels'
+    /// radii; false if there is none.
+    fn build<S: Spectrum>(&mut self, points: &[Option<VisiblePoint<S>>], stats: &[PixelStats]) -> bool {
+        self.entries.clear();
+        self.entries.extend(points.iter().zip(stats).enumerate().filter_map(|(i, (vp, st))| {
+            let r = st.radius as f32;
+            vp.as_ref().map(|vp| (GridEntry { p: vp.si.p, r2: r * r, pixel: i as u32 }, r))
+        }));
+        self.rebuild()
     }
 
-    /// The grid of `pts`, each a visible point (`pixel`: its index among
-    /// the points looked up) with its radius.
-    fn from_entries(pts: Vec<(GridEntry, f32)>) -> Option<Grid> {
+    /// Rebuilds the grid from `entries`, each a visible point (`pixel`: its
+    /// index among the points looked up) with its radius; false if the
+    /// grid is empty (no point, or no positive radius).
+    fn rebuild(&mut self) -> bool {
         let (mut lo, mut hi, mut max_r) =
             (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY), 0.0f32);
-        for (e, r) in &pts {
+        for (e, r) in &self.entries {
             lo = lo.min(e.p);
             hi = hi.max(e.p);
             max_r = max_r.max(*r);
         }
-        let count = pts.len();
+        let count = self.entries.len();
         if count == 0 || !(max_r > 0.0) || !lo.is_finite() || !hi.is_finite() {
-            return None;
+            return false;
         }
-        let origin = lo - Vec3::splat(max_r);
-        let inv_cell = 1.0 / (2.0 * max_r);
-        let mut grid = Grid {
-            origin,
-            inv_cell,
-            starts: vec![0; count + 1],
-            items: vec![],
-        };
+        self.origin = lo - Vec3::splat(max_r);
+        self.inv_cell = 1.0 / (2.0 * max_r);
         // A point goes once into each bucket its cells hash to: two of its
         // cells may share a bucket, and a photon there must count it once.
         // The hashing in parallel (each point's buckets, at most 8); the
         // buckets filled in the points' order.
         const NONE: u32 = u32::MAX;
-        let point_buckets: Vec<[u32; 8]> = pts
+        let mut point_buckets = std::mem::take(&mut self.point_buckets);
+        self.entries
             .par_iter()
             .map(|(e, r)| {
                 let mut out = [NONE; 8];
                 let mut n = 0;
                 let r = Vec3::splat(*r);
-                let (a, b) = (grid.cell(e.p - r), grid.cell(e.p + r));
+                let (a, b) = (self.cell(e.p - r), self.cell(e.p + r));
                 for z in a[2]..=b[2] {
                     for y in a[1]..=b[1] {
                         for x in a[0]..=b[0] {
@@ -345,8 +344,10 @@ impl Grid {
                 }
                 out
             })
-            .collect();
-        let mut counts = vec![0u32; count + 1];
+            .collect_into_vec(&mut point_buckets);
+        let counts = &mut self.starts;
+        counts.clear();
+        counts.resize(count + 1, 0);
         for bs in &point_buckets {
             for &b in bs.iter().take_while(|&&b| b != NONE) {
                 counts[b as usize + 1] += 1;
@@ -355,18 +356,19 @@ impl Grid {
         for b in 0..count {
             counts[b + 1] += counts[b];
         }
-        let mut fill = counts.clone();
+        self.fill.clear();
+        self.fill.extend_from_slice(counts);
         let empty = GridEntry { p: Vec3::ZERO, r2: 0.0, pixel: 0 };
-        let mut items = vec![empty; counts[count] as usize];
-        for ((e, _), bs) in pts.iter().zip(&point_buckets) {
+        self.items.clear();
+        self.items.resize(counts[count] as usize, empty);
+        for ((e, _), bs) in self.entries.iter().zip(&point_buckets) {
             for &b in bs.iter().take_while(|&&b| b != NONE) {
-                items[fill[b as usize] as usize] = *e;
-                fill[b as usize] += 1;
+                self.items[self.fill[b as usize] as usize] = *e;
+                self.fill[b as usize] += 1;
             }
         }
-        grid.starts = counts;
-        grid.items = items;
-        Some(grid)
+        self.point_buckets = point_buckets;
+        true
     }
 
     #[inline]
@@ -789,7 +791,8 @@ mod tests {
                 direct: [0.0; 3],
             })
             .collect();
-        let grid = Grid::build(&points, &stats).expect("points");
+        let mut grid = Grid::default();
+        assert!(grid.build(&points, &stats), "points");
         let mut found = 0;
         for _ in 0..2000 {
             let q = Vec3::new(1.2 * rng.next_f32() - 0.1, 1.2 * rng.next_f32() - 0.1, 0.2 * rng.next_f32());
@@ -818,12 +821,29 @@ mod tests {
 }
 
 /// One iteration's photon sums per pixel.
+#[derive(Default)]
 struct Sums {
     phi: Vec<[AtomicI64; 3]>,
     /// Photons counted per visible point, for its radius; empty for the
     /// later vertices, whose radius follows a fixed schedule.
     count: Vec<AtomicU32>,
 }
+
+impl Sums {
+    /// Zero sums for `points` points (counted or not), in the buffers of
+    /// the last iteration.
+    fn reset(&mut self, points: usize, counted: bool) {
+        self.phi.clear();
+        self.phi.resize_with(points, Default::default);
+        self.count.clear();
+        if counted {
+            self.count.resize_with(points, Default::default);
+        }
+    }
+}
+
+/// Pixels a unit of parallel work in the camera pass.
+const CAMERA_CHUNK: usize = 64;
 
 /// Renders `scene` (whose integrator is `sppm`) progressively: the film's
 /// sample count is the number of iterations, split into the passes of
@@ -894,6 +914,16 @@ pub fn render<S: Spectrum>(
     let mut done = 0u32;
     let header = crate::render::state_header::<S>(scene);
     let mut state = FilmState::empty(header.clone());
+    // The buffers of an iteration, kept across iterations.
+    let mut direct = vec![Rgb::zero(); pixels];
+    let mut points: Vec<Option<VisiblePoint<S>>> = (0..pixels).map(|_| None).collect();
+    let mut chunk_later: Vec<(Vec<VisiblePoint<S>>, Vec<u32>)> =
+        (0..pixels.div_ceil(CAMERA_CHUNK)).map(|_| Default::default()).collect();
+    let mut later: Vec<Option<VisiblePoint<S>>> = Vec::new();
+    let mut later_pixel: Vec<u32> = Vec::new();
+    let mut later_light: Vec<[f64; 3]> = Vec::new();
+    let (mut sums, mut later_sums) = (Sums::default(), Sums::default());
+    let (mut grid, mut later_grid) = (Grid::default(), Grid::default());
     let min_len = if sppm.granularity > 0 {
         sppm.granularity as usize
     } else {
@@ -910,33 +940,37 @@ pub fn render<S: Spectrum>(
                 + (mix64(scene.sampler.seed) >> 11) as f64 / (1u64 << 53) as f64)
                 % 1.0) as f32;
             let wl = S::sample_wavelengths(u.min(1.0 - f32::EPSILON));
-            type Paths<S> = (Vec<Rgb>, Vec<(Option<VisiblePoint<S>>, Vec<VisiblePoint<S>>)>);
-            let (direct, points): Paths<S> = pool.install(|| {
-                (0..pixels)
-                    .into_par_iter()
-                    .with_min_len(64)
-                    .map(|i| {
-                        let mut later = Vec::new();
-                        let (l, vp) = sppm.camera_path::<S>(
-                            scene,
-                            ox + (i % w as usize) as u32,
-                            oy + (i / w as usize) as u32,
-                            iteration,
-                            wl,
-                            &mut later,
-                        );
-                        (l, (vp, later))
+            // One camera path per pixel, in chunks whose later gather
+            // points are appended in pixel order.
+            pool.install(|| {
+                direct
+                    .par_chunks_mut(CAMERA_CHUNK)
+                    .zip(points.par_chunks_mut(CAMERA_CHUNK))
+                    .zip(chunk_later.par_iter_mut())
+                    .enumerate()
+                    .for_each(|(c, ((direct, points), (later, later_pixel)))| {
+                        later.clear();
+                        later_pixel.clear();
+                        for (j, (d, vp)) in direct.iter_mut().zip(points.iter_mut()).enumerate() {
+                            let i = c * CAMERA_CHUNK + j;
+                            (*d, *vp) = sppm.camera_path::<S>(
+                                scene,
+                                ox + (i % w as usize) as u32,
+                                oy + (i / w as usize) as u32,
+                                iteration,
+                                wl,
+                                later,
+                            );
+                            later_pixel.resize(later.len(), i as u32);
+                        }
                     })
-                    .unzip()
             });
-            // The later vertices' gather points in pixel order, with their pixels.
-            let (points, later): (Vec<_>, Vec<_>) = points.into_iter().unzip();
-            let later_pixel: Vec<u32> = later
-                .iter()
-                .enumerate()
-                .flat_map(|(i, v)| std::iter::repeat_n(i as u32, v.len()))
-                .collect();
-            let later: Vec<Option<VisiblePoint<S>>> = later.into_iter().flatten().map(Some).collect();
+            later.clear();
+            later_pixel.clear();
+            for (vps, pix) in &mut chunk_later {
+                later.extend(vps.drain(..).map(Some));
+                later_pixel.append(pix);
+            }
             if let Some((offset, spread)) = footprint {
                 for (st, vp) in stats.iter_mut().zip(&points) {
                     if let (0.0, Some(vp)) = (st.radius, vp) {
@@ -945,10 +979,7 @@ pub fn render<S: Spectrum>(
                     }
                 }
             }
-            let sums = Sums {
-                phi: (0..pixels).map(|_| Default::default()).collect(),
-                count: (0..pixels).map(|_| AtomicU32::new(0)).collect(),
-            };
+            sums.reset(pixels, true);
             if vertex_radius == 0.0 && sppm.photons.gathers_later() {
                 let (sum, n) = stats.iter().filter(|st| st.radius > 0.0).fold((0.0, 0usize), |(s, n), st| (s + st.radius, n + 1));
                 let mean = sum / n.max(1) as f64;
@@ -957,20 +988,15 @@ pub fn render<S: Spectrum>(
             // The later vertices' radius: VCM's schedule, r² ∝ k^(α − 1) in
             // the k-th iteration, so that bias and variance both vanish.
             let later_r = vertex_radius * ((iteration + 1) as f64).powf((sppm.alpha as f64 - 1.0) / 2.0);
-            let later_sums = Sums { phi: (0..later.len()).map(|_| Default::default()).collect(), count: vec![] };
-            let later_grid = pool.install(|| Grid::from_entries(
-                later
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(j, vp)| {
-                        let r = later_r as f32;
-                        vp.as_ref().map(|vp| (GridEntry { p: vp.si.p, r2: r * r, pixel: j as u32 }, r))
-                    })
-                    .collect(),
-            ));
-            let grid = if sppm.photons == Photons::None { None } else { pool.install(|| Grid::build(&points, &stats)) };
-            if let Some(grid) = grid {
-                let later = later_grid.as_ref().map(|g| (g, &later[..], &later_sums));
+            later_sums.reset(later.len(), false);
+            later_grid.entries.clear();
+            later_grid.entries.extend(later.iter().enumerate().filter_map(|(j, vp)| {
+                let r = later_r as f32;
+                vp.as_ref().map(|vp| (GridEntry { p: vp.si.p, r2: r * r, pixel: j as u32 }, r))
+            }));
+            let later_ok = pool.install(|| later_grid.rebuild());
+            if sppm.photons != Photons::None && pool.install(|| grid.build(&points, &stats)) {
+                let later = later_ok.then_some((&later_grid, &later[..], &later_sums));
                 pool.install(|| {
                     (0..photon_count)
                         .into_par_iter()
@@ -993,7 +1019,8 @@ pub fn render<S: Spectrum>(
             // The later vertices' photons: each iteration's own density
             // estimate, added to its pixel's path-traced light.
             let later_scale = 1.0 / (FIXED_SCALE * photon_count.max(1) as f64 * std::f64::consts::PI * later_r * later_r);
-            let mut later_light = vec![[0.0f64; 3]; if later_pixel.is_empty() { 0 } else { pixels }];
+            later_light.clear();
+            later_light.resize(if later_pixel.is_empty() { 0 } else { pixels }, [0.0f64; 3]);
             if later_scale.is_finite() {
                 for (j, &i) in later_pixel.iter().enumerate() {
                     for c in 0..3 {
