@@ -1278,6 +1278,7 @@ impl Accel {
         let mut stack: [MaybeUninit<u64>; STACK] = [MaybeUninit::uninit(); STACK];
         let mut sp = 0usize;
         let mut cur = start;
+        let single = if Q { self.qnodes.len() } else { self.nodes.len() } == 1;
         loop {
             if cur & LEAF == 0 {
                 count!(kind, stats::NODES, 1);
@@ -1295,38 +1296,55 @@ impl Accel {
                         cur = children[mask.trailing_zeros() as usize];
                         continue;
                     }
-                    // Two or more: go to the nearest, push the others far
-                    // to near so the nearest remaining pops first.
-                    let t = tnear.to_array();
-                    let mut keys = [0u64; WIDTH];
-                    let mut k = 0;
-                    let mut m = mask;
-                    while m != 0 {
-                        let i = m.trailing_zeros() as usize;
-                        m &= m - 1;
-                        let key = (t[i].to_bits() as u64) << 32 | children[i] as u64;
-                        // SAFETY: `k` counts the bits of `mask` taken so far,
-                        // and `mask` has one bit per child. (Lets the sort
-                        // below go without bounds checks.)
-                        unsafe { std::hint::assert_unchecked(k < WIDTH) };
-                        // Insertion sort, descending.
-                        let mut j = k;
-                        while j > 0 && keys[j - 1] < key {
-                            keys[j] = keys[j - 1];
-                            j -= 1;
+                    if single && mask & !Self::eager_leaves::<INSTANCES, V>(children) == 0 {
+                        // A BVH of one node (a tiny scene, as the Cornell
+                        // box), and the ray enters leaves alone: each is
+                        // tested now, in slot order. The tie rule makes the
+                        // hit independent of the order, and ordering and
+                        // stacking them cost more than the few leaves a
+                        // nearer hit would cull (callgrind: −10 % in the
+                        // Cornell box's closest hits; in deeper BVHs culling
+                        // pays, +2 % on a 2 k-triangle mesh's).
+                        let mut m = mask;
+                        while m != 0 {
+                            let i = m.trailing_zeros() as usize;
+                            m &= m - 1;
+                            self.leaf_closest::<INSTANCES, PACKED, V>(children[i], r, ray, best, kind);
                         }
-                        keys[j] = key;
-                        k += 1;
-                    }
-                    for &key in &keys[..k - 1] {
-                        if !Q {
-                            self.prefetch(key as u32);
+                    } else {
+                        // Two or more: go to the nearest, push the others far
+                        // to near so the nearest remaining pops first.
+                        let t = tnear.to_array();
+                        let mut keys = [0u64; WIDTH];
+                        let mut k = 0;
+                        let mut m = mask;
+                        while m != 0 {
+                            let i = m.trailing_zeros() as usize;
+                            m &= m - 1;
+                            let key = (t[i].to_bits() as u64) << 32 | children[i] as u64;
+                            // SAFETY: `k` counts the bits of `mask` taken so far,
+                            // and `mask` has one bit per child. (Lets the sort
+                            // below go without bounds checks.)
+                            unsafe { std::hint::assert_unchecked(k < WIDTH) };
+                            // Insertion sort, descending.
+                            let mut j = k;
+                            while j > 0 && keys[j - 1] < key {
+                                keys[j] = keys[j - 1];
+                                j -= 1;
+                            }
+                            keys[j] = key;
+                            k += 1;
                         }
-                        stack[sp].write(key);
-                        sp += 1;
+                        for &key in &keys[..k - 1] {
+                            if !Q {
+                                self.prefetch(key as u32);
+                            }
+                            stack[sp].write(key);
+                            sp += 1;
+                        }
+                        cur = keys[k - 1] as u32;
+                        continue;
                     }
-                    cur = keys[k - 1] as u32;
-                    continue;
                 }
             } else {
                 self.leaf_closest::<INSTANCES, PACKED, V>(cur, r, ray, best, kind);
@@ -1344,6 +1362,26 @@ impl Accel {
                     break;
                 }
             }
+        }
+    }
+
+    /// The slots of `children` (a node's child words) that `closest_from`
+    /// tests at once when a ray enters only such: leaves; where the BVH
+    /// holds instances, only leaves of triangles alone (`DIRECT`: an
+    /// instance's group is worth culling by a nearer hit).
+    #[inline(always)]
+    fn eager_leaves<const INSTANCES: bool, V: Lanes>(children: &[u32; WIDTH]) -> u32 {
+        if INSTANCES {
+            let mut m = 0;
+            for (i, &c) in children.iter().enumerate() {
+                m |= ((c & (LEAF | DIRECT) == LEAF | DIRECT) as u32) << i;
+            }
+            m
+        } else {
+            // `LEAF` is the sign bit: one load and one sign mask.
+            // SAFETY: [u32; 8] and [f32; 8] have the same size and
+            // alignment, and every bit pattern is an f32.
+            V::load(unsafe { &*(children as *const [u32; WIDTH] as *const [f32; WIDTH]) }).bitmask()
         }
     }
 
