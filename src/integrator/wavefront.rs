@@ -574,24 +574,29 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     // Pass 1: the emitter's choice per path; area lights on meshes go to
     // the SIMD kernel, `constant` ones at `diffuse` BSDFs to the
     // environment's kernels, the others are sampled here.
-    let live = std::mem::take(&mut q.live);
     // Kernel lanes the kernels do not shade (pass 2 takes them one by one).
     let mut unshaded = 0usize;
-    // The tables out of `q` for the loop (which lends `q` to the
-    // environment's lanes), back after it.
-    let (lights, shape_nee, one_emitter) = (std::mem::take(&mut q.lights), std::mem::take(&mut q.shape_nee), q.one_emitter);
-    for &i in &live {
+    // The loop over local slices and field borrows of `q`, each cut to the
+    // batch's length once: through `q`, every lane reloaded the vectors'
+    // pointers and lengths after each push into the chunks.
+    let n = q.throughput.len();
+    let Queues { live, si, wl, sampler, throughput, area, area_meta, env, env_path, shadow_path, shadow_sample, shadow_term, shadow_ray, lights, shape_nee, one_emitter, .. } = q;
+    let (si, wl, sampler, throughput) = (&si[..n], &mut wl[..n], &mut sampler[..n], &throughput[..n]);
+    let (lights, shape_nee, one_emitter) = (&lights[..], &shape_nee[..], *one_emitter);
+    let mut env_lanes = EnvLanes { chunks: env, paths: env_path };
+    for &i in live.iter() {
         let i = i as usize;
-        let si = &q.si[i];
-        if S::hero_wavelength(&q.wl[i]).is_some() && scene.bsdf(si).disperses() {
-            S::terminate_secondary(&mut q.wl[i]);
+        let si = &si[i];
+        if S::hero_wavelength(&wl[i]).is_some() && scene.bsdf(si).disperses() {
+            S::terminate_secondary(&mut wl[i]);
         }
+        let wl = &wl[i];
         // As `scene.bsdf(si).lobes().intersects(Lobe::SMOOTH)`.
         let nee = shape_nee.get(si.shape as usize).copied().unwrap_or(SurfaceNee::Skip);
         if matches!(nee, SurfaceNee::Skip) {
             continue;
         }
-        let u = q.sampler[i].next_2d();
+        let u = sampler[i].next_2d();
         let selected = match one_emitter {
             Some(true) => Some((0, 1.0, u.x)),
             Some(false) => None,
@@ -610,11 +615,11 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
                 let [a, b, c, n] = light.triangles[tri];
                 (a, b, c, n, ux)
             };
-            let k = q.area_meta.len();
-            if k % LANES == 0 && k / LANES == q.area.len() {
-                q.area.push(AreaChunk::default());
+            let k = area_meta.len();
+            if k % LANES == 0 && k / LANES == area.len() {
+                area.push(AreaChunk::default());
             }
-            let (ch, l) = (&mut q.area[k / LANES], k % LANES);
+            let (ch, l) = (&mut area[k / LANES], k % LANES);
             for (dst, src) in [(&mut ch.p, si.p), (&mut ch.n, si.n), (&mut ch.a, a), (&mut ch.b, b), (&mut ch.c, c), (&mut ch.tri_n, tri_n)] {
                 dst[0][l] = src.x;
                 dst[1][l] = src.y;
@@ -628,7 +633,6 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
             // evaluated here).
             let mut shade = false;
             if let (true, SurfaceNee::Diffuse(refl)) = (shade_diffuse, nee) {
-                let wl = &q.wl[i];
                 let r = refl.or_else(|| match scene.bsdf(si) {
                     Bsdf::Diffuse(b) => b.reflectance.eval_spectrum::<S>(si, wl).depolarize().to_channels4(),
                     _ => None,
@@ -637,7 +641,7 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
                     Emitter::Area(light) => light.radiance.eval::<S>(wl).to_channels4(),
                     _ => None,
                 });
-                if let (Some(t), Some(r), Some(e)) = (q.throughput[i].to_channels4(), r, e) {
+                if let (Some(t), Some(r), Some(e)) = (throughput[i].to_channels4(), r, e) {
                     for c in 0..4 {
                         ch.throughput[c][l] = t[c];
                         ch.reflectance[c][l] = r[c];
@@ -652,20 +656,17 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
                 }
             }
             unshaded += usize::from(!shade);
-            q.area_meta.push(AreaLane { path: i as u32, pmf, emitter: index as u32, shade });
-        } else if shade_diffuse && environment_lane(scene, q, i, index, pmf, Vec2::new(ux, u.y)) {
+            area_meta.push(AreaLane { path: i as u32, pmf, emitter: index as u32, shade });
+        } else if shade_diffuse && environment_lane(scene, &mut env_lanes, si, wl, throughput[i], i, index, pmf, Vec2::new(ux, u.y)) {
             // In the environment kernels' chunks.
-        } else if let Some((es, ray)) = scene.sample_emitter_ray_from::<S>(&q.si[i], index, pmf, ux, u.y, &q.wl[i]) {
-            let Some(term) = bsdf_term(scene, &q.si[i], &es, &q.wl[i]) else { continue };
-            q.shadow_path.push(i as u32);
-            q.shadow_sample.push(es);
-            q.shadow_term.push(term);
-            q.shadow_ray.push(ray);
+        } else if let Some((es, ray)) = scene.sample_emitter_ray_from::<S>(si, index, pmf, ux, u.y, wl) {
+            let Some(term) = bsdf_term(scene, si, &es, wl) else { continue };
+            shadow_path.push(i as u32);
+            shadow_sample.push(es);
+            shadow_term.push(term);
+            shadow_ray.push(ray);
         }
     }
-    q.live = live;
-    q.lights = lights;
-    q.shape_nee = shape_nee;
     // Pass 2: the kernels; for the lanes they did not shade, the radiance
     // and the selection divided in as `AreaLight::sample_direct` and
     // `Scene::sample_emitter_ray` do, and their shadow rays join the scalar
@@ -804,27 +805,32 @@ fn bsdf_term<S: Spectrum>(scene: &Scene, si: &SurfaceInteraction, es: &EmitterSa
     Some((f, if es.delta { 1.0 } else { mis_power(es.pdf, pdf) }))
 }
 
+/// The environment kernels' chunks and, per lane, its path.
+struct EnvLanes<'a> {
+    chunks: &'a mut Vec<AreaChunk>,
+    paths: &'a mut Vec<u32>,
+}
+
 /// Puts path `i`'s sample of emitter `index` (picked with probability
-/// `pmf`; the 2-D sample `u`) into the environment kernels' chunks if
-/// they compute it exactly as `Scene::sample_emitter_ray_from` and the
-/// shading after it would: a `constant` emitter at a `diffuse` BSDF. Its
-/// direction is drawn here (`ConstantLight::sample_direction`'s
-/// `square_to_uniform_sphere`: a libm sine and cosine, lane by lane).
-/// Whether it did.
+/// `pmf`; the 2-D sample `u`) at `si` (its wavelengths `wl`, throughput
+/// `throughput`) into the environment kernels' chunks if they compute it
+/// exactly as `Scene::sample_emitter_ray_from` and the shading after it
+/// would: a `constant` emitter at a `diffuse` BSDF. Its direction is drawn
+/// here (`ConstantLight::sample_direction`'s `square_to_uniform_sphere`: a
+/// libm sine and cosine, lane by lane). Whether it did.
 #[inline(always)]
-fn environment_lane<S: Spectrum>(scene: &Scene, q: &mut Queues<S>, i: usize, index: usize, pmf: f32, u: Vec2) -> bool {
-    let si = &q.si[i];
+#[allow(clippy::too_many_arguments)]
+fn environment_lane<S: Spectrum>(scene: &Scene, lanes: &mut EnvLanes<'_>, si: &SurfaceInteraction, wl: &S::Wavelengths, throughput: S, i: usize, index: usize, pmf: f32, u: Vec2) -> bool {
     let (Bsdf::Diffuse(b), Emitter::Constant(light)) = (scene.bsdf(si), &scene.emitters[index]) else { return false };
-    let wl = &q.wl[i];
     let refl = b.reflectance.eval_spectrum::<S>(si, wl).depolarize();
     let radiance: S = light.radiance.eval(wl);
-    let (Some(t), Some(r), Some(e)) = (q.throughput[i].to_channels4(), refl.to_channels4(), radiance.to_channels4()) else { return false };
+    let (Some(t), Some(r), Some(e)) = (throughput.to_channels4(), refl.to_channels4(), radiance.to_channels4()) else { return false };
     let d = square_to_uniform_sphere(u);
-    let k = q.env_path.len();
-    if k % LANES == 0 && k / LANES == q.env.len() {
-        q.env.push(AreaChunk::default());
+    let k = lanes.paths.len();
+    if k % LANES == 0 && k / LANES == lanes.chunks.len() {
+        lanes.chunks.push(AreaChunk::default());
     }
-    let (ch, l) = (&mut q.env[k / LANES], k % LANES);
+    let (ch, l) = (&mut lanes.chunks[k / LANES], k % LANES);
     for (dst, src) in [(&mut ch.p, si.p), (&mut ch.n, si.n), (&mut ch.d, d), (&mut ch.fn_, si.frame.n)] {
         dst[0][l] = src.x;
         dst[1][l] = src.y;
@@ -838,7 +844,7 @@ fn environment_lane<S: Spectrum>(scene: &Scene, q: &mut Queues<S>, i: usize, ind
     ch.pdf[l] = constant::PDF;
     ch.wi_z[l] = si.wi.z;
     ch.pmf[l] = pmf;
-    q.env_path.push(i as u32);
+    lanes.paths.push(i as u32);
     true
 }
 
