@@ -4,8 +4,7 @@
 //! image agrees with a non-adaptive reference within noise; bad options get
 //! a clear error.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::Image;
 use snell::render::Adaptive;
 use snell::spectrum::Rgb;

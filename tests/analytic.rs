@@ -4,8 +4,7 @@
 //! at each pixel's footprint (found through the scene's own camera, whose
 //! conventions the Mitsuba comparison tests pin down).
 
-mod common;
-use common::*;
+use crate::common::*;
 use glam::{Vec2, Vec3};
 use snell::film::Image;
 use snell::spectrum::Rgb;

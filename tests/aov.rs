@@ -3,9 +3,8 @@
 //! moment.exr: every channel of Mitsuba's film) and against Snell's own
 //! plain renders.
 
-mod common;
 
-use common::{compare, compare_with_reference_noise, params, render_passes, repo};
+use crate::common::{compare, compare_with_reference_noise, params, render_passes, repo};
 use snell::film::output::{read_exr, write_image};
 use snell::film::{Image, PixelFormat};
 use snell::spectrum::Rgb;

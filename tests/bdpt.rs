@@ -6,8 +6,7 @@
 //! `ptracer`; the image is exact across threads and passes; bad parameters
 //! are located errors.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::Image;
 use snell::spectrum::{Rgb, Sampled, Spectrum};
 use snell::{LoadOptions, RenderOptions, Scene};

@@ -7,9 +7,8 @@
 //! plane of the optic axis) keeps only the extraordinary image, one along y
 //! only the ordinary one; at 45° each keeps half (Malus).
 
-mod common;
 
-use common::*;
+use crate::common::*;
 use snell::bsdf::birefringent::crystal_index;
 use snell::film::Image;
 use snell::spectrum::{Polarized, Rgb, Spectrum};

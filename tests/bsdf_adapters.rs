@@ -6,8 +6,7 @@
 //! of opacity 0 renders the image of the scene without it, a mask of
 //! opacity 1 that of its nested BSDF.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::bsdf::Bsdf;
 use snell::film::Image;
 use snell::film::output::read_exr;

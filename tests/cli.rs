@@ -1,6 +1,6 @@
 //! The `snell` command-line tool, run as a separate process on small scenes.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

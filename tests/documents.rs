@@ -2,8 +2,7 @@
 //! `<include>` resolution, the in-memory upgrade of version 0.x files, and
 //! features that are named as "not supported yet".
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::Image;
 use snell::{LoadOptions, RenderOptions, SceneError};
 use std::path::{Path, PathBuf};

@@ -12,8 +12,7 @@
 //! - `projector`: the uniform irradiance π·scale·E/h² it gives a facing plane;
 //! - a missing env map is a located error naming the file.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::output::read_exr;
 use snell::spectrum::{Polarized, Rgb, Sampled};
 use std::path::Path;

@@ -15,8 +15,7 @@
 //!   sheet passes, pixel by pixel, while keeping different copies of the
 //!   page (the walk-off and extinction are checked in tests/birefringence.rs).
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::Image;
 use snell::film::output::read_exr;
 use snell::spectrum::{Polarized, Rgb, Sampled};

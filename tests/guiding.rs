@@ -3,7 +3,6 @@
 //! to the unguided image and to Mitsuba's, images are bit-identical across
 //! thread counts and pass splits, and bad parameters are located errors.
 
-mod common;
 
 use glam::{Vec2, Vec3};
 use snell::integrator::guiding::quadtree::{DirTree, dir_to_square, square_to_dir};
@@ -118,7 +117,7 @@ fn quadtree_samples_follow_the_pdf() {
     assert!(chi2 < limit, "χ² = {chi2:.1} over {dof} cells (limit {limit:.1})");
 }
 
-use common::*;
+use crate::common::*;
 use snell::film::Image;
 use snell::spectrum::Rgb;
 use snell::{RenderOptions, Scene};

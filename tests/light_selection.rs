@@ -2,8 +2,7 @@
 //! probabilities are a distribution that selection follows exactly, and the
 //! images of every strategy agree with Mitsuba's (which selects uniformly).
 
-mod common;
-use common::*;
+use crate::common::*;
 use glam::{Vec2, Vec3};
 use snell::emitter::{LightSampling, ShadingPoint};
 use snell::film::Image;

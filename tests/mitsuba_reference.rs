@@ -5,8 +5,7 @@
 //! means must agree within 1 % per channel and every 16×16 block within its
 //! noise.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::output::read_exr;
 
 fn check(scene: &str, reference: &str) {

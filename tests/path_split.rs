@@ -3,8 +3,7 @@
 //! the plain estimator (and as Mitsuba's), less noise per camera ray, and
 //! images bit-identical across thread counts and pass splits.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::Image;
 use snell::spectrum::Rgb;
 use snell::{RenderOptions, Scene};

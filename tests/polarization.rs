@@ -6,8 +6,7 @@
 //! see each sheet as a 50 % filter (as Mitsuba's non-polarized variants do),
 //! ¼ whatever θ.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::spectrum::{Polarized, Rgb, Sampled};
 use std::path::Path;
 

@@ -4,8 +4,7 @@
 //! and depolarising surfaces has the unpolarised S0; and a pane reflects the
 //! sky s-polarised at Brewster's angle, which a crossed polarizer removes.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::spectrum::{Polarized, Rgb, Sampled};
 use std::path::Path;
 

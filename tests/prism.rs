@@ -10,8 +10,7 @@
 //! those positions with D65 (the white beam's spectrum), the Fresnel
 //! transmittance of both faces and the channel's colour-matching response.
 
-mod common;
-use common::*;
+use crate::common::*;
 use glam::Vec3;
 use snell::bsdf::dispersion::named_dispersive;
 use snell::bsdf::fresnel::fresnel_dielectric;

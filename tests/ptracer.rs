@@ -1,8 +1,7 @@
 //! Particle tracing (`ptracer`): light paths splatted onto the film must give
 //! the same image as camera paths, in expectation.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 /// The Cornell box with its integrator swapped for `ptracer`, against
 /// Mitsuba's path-traced reference: the same expected image, reached from

@@ -41,8 +41,7 @@
 //! 0.53° disk (±0.27°); the point source leaves them sharp, so the peaks can
 //! be measured to the tolerance above.
 
-mod common;
-use common::*;
+use crate::common::*;
 use glam::Vec2;
 use snell::bsdf::dispersion::named_dispersive;
 use snell::emitter::Emitter;

@@ -4,8 +4,7 @@
 //! command line) checkpoints that resume to the uninterrupted image and
 //! survive a SIGKILL during a write.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::{FilmState, Image};
 use snell::spectrum::{Polarized, Rgb, Spectrum};
 use snell::{Mode, RenderOptions, Scene};

@@ -4,8 +4,7 @@
 //! own properties (stratification, nets, discrepancy, addressability) are
 //! tested beside each sampler in src/sampler/.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::LoadOptions;
 use snell::film::output::read_exr;
 use snell::sampler::SamplerKind;

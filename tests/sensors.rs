@@ -6,8 +6,7 @@
 //! committed; Snell renders 16 passes × 16 spp and must agree within 1 % in
 //! the image means and within noise in every 8×8 block.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::LoadOptions;
 use snell::film::output::read_exr;
 use snell::sensor::Camera;

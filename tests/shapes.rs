@@ -7,9 +7,9 @@
 //! file `tests/serialized/rectangle_normals_uv.serialized` from the
 //! mitsuba-data repository.
 
-mod common;
+use crate::common;
 
-use common::{mean, render_passes};
+use crate::common::{mean, render_passes};
 use glam::{Vec2, Vec3};
 use snell::geometry::mesh_io::RawMesh;
 use snell::geometry::serialized;

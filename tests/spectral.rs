@@ -10,8 +10,7 @@
 //!   tests/references/spectral/, made by tools/make_references.py with
 //!   `--variant llvm_ad_spectral`): the Cornell box and the caustic box.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::output::read_exr;
 use snell::film::Image;
 use snell::spectrum::cie::{cie_xyz, d65_unit, xyz_to_linear_srgb, y_normalization};

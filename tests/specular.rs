@@ -8,8 +8,7 @@
 //! The expected images are computed here at each pixel's footprint (a grid
 //! of camera rays per pixel through the scene's own camera).
 
-mod common;
-use common::*;
+use crate::common::*;
 use glam::{Vec2, Vec3};
 use snell::bsdf::fresnel::{fresnel_conductor, fresnel_dielectric};
 use snell::film::Image;

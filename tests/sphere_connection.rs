@@ -2,8 +2,7 @@
 //! through smooth dielectric spheres in closed form
 //! (`src/integrator/sphere_connection.rs`).
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::Image;
 
 /// A 7 × 7 grid of water drops (radius 0.3, non-dispersive η = 1.333) at

@@ -5,8 +5,8 @@
 //! against a closed form), it is deterministic, and bad parameters are
 //! located errors.
 
-mod common;
-use common::*;
+use crate::common;
+use crate::common::*;
 use snell::film::Image;
 use snell::film::output::read_exr;
 use snell::spectrum::{Rgb, Sampled, Spectrum};

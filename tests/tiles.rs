@@ -6,8 +6,7 @@
 //! resumes from a state holding any complete sample ranges (what a
 //! distributed render's checkpoint holds), not only a prefix.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::FilmState;
 use snell::{Mode, RenderOptions, Scene};
 

@@ -9,8 +9,7 @@
 //! same bit for bit for any thread count and pass split; bad parameters
 //! and unsupported modes are located or clear errors.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::Image;
 use snell::film::output::read_exr;
 use snell::spectrum::{Rgb, Sampled};

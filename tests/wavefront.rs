@@ -6,8 +6,7 @@
 //! `max_depth` 1 and 2, the spectral mode with a dispersive prism), and the
 //! same image for any thread count and pass split.
 
-mod common;
-use common::*;
+use crate::common::*;
 use snell::film::Image;
 use snell::spectrum::{Rgb, Sampled, Spectrum};
 use snell::{RenderOptions, Scene};

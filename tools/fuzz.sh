@@ -34,10 +34,10 @@ OUT=${OUT:-${TMPDIR:-/tmp}/snell-fuzz-logs}
 
 bin=${BIN:-}
 if [ -z "$bin" ]; then
-    bin=$(cargo test --release --test fuzz --no-run 2>&1 | sed -n 's/.*Executable tests\/fuzz.rs (\(.*\))/\1/p' | tail -n 1)
+    bin=$(cargo test --release --test integration --no-run 2>&1 | sed -n 's/.*Executable tests\/main.rs (\(.*\))/\1/p' | tail -n 1)
 fi
 if [ -z "$bin" ] || [ ! -x "$bin" ]; then
-    echo "fuzz.sh: cannot build the fuzz harness (cargo test --release --test fuzz --no-run)" >&2
+    echo "fuzz.sh: cannot build the fuzz harness (cargo test --release --test integration --no-run)" >&2
     exit 1
 fi
 mkdir -p "$OUT"
@@ -55,7 +55,7 @@ for (( seed = START; seed < START + SEEDS; seed++ )); do
     (
         ulimit -v $(( MEM_MB * 1024 ))
         SNELL_FUZZ_SEED=$seed SNELL_FUZZ_CASES=$CASES SNELL_FUZZ_CASE_SECONDS=$CASE_SECONDS \
-            exec timeout -k 5 "$batch_limit" "$bin" --test-threads 2 --nocapture
+            exec timeout -k 5 "$batch_limit" "$bin" fuzz:: --test-threads 2 --nocapture
     ) >"$log" 2>&1
     status=$?
     batches=$(( batches + 1 ))
