@@ -134,7 +134,7 @@ impl EnvironmentMap {
     #[inline]
     fn texel_coords(&self, d: Vec3) -> Vec2 {
         let l = self.to_world.inverse_vector(d).normalize_or_zero();
-        let u = l.x.atan2(-l.z) * (0.5 / PI) - 0.5 / self.width as f32;
+        let u = crate::math::trig::atan2(l.x, -l.z) * (0.5 / PI) - 0.5 / self.width as f32;
         let u = u - u.floor();
         let v = l.y.clamp(-1.0, 1.0).acos() * (1.0 / PI);
         Vec2::new((u * self.width as f32).min(self.width as f32 * (1.0 - f32::EPSILON)), v * (self.height - 1) as f32)

@@ -143,7 +143,7 @@ impl Rectangle {
         let d1 = la * lb * lc + (x01 + yy0 + z2) * lc + ac * lb + (xx1 + y01 + z2) * la;
         let d2 = la * lc * ld + ac * ld + (xx0 + y01 + z2) * lc + (x01 + yy1 + z2) * la;
         let n = z * self.w * self.h;
-        let solid_angle = 2.0 * (n * (d1 + d2)).atan2(d1 * d2 - n * n);
+        let solid_angle = 2.0 * crate::math::trig::atan2(n * (d1 + d2), d1 * d2 - n * n);
         if !(solid_angle >= MIN_SOLID_ANGLE && solid_angle.is_finite()) {
             return None;
         }

@@ -128,7 +128,7 @@ impl Cylinder {
         } else {
             (Vec3::X, l)
         };
-        let mut phi = l.y.atan2(l.x);
+        let mut phi = crate::math::trig::atan2(l.y, l.x);
         if phi < 0.0 {
             phi += 2.0 * PI;
         }

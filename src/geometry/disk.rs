@@ -42,7 +42,7 @@ impl Disk {
     pub fn uv_at(&self, p: Vec3) -> Vec2 {
         let l = self.to_world.inverse_point(p);
         let r = (l.x * l.x + l.y * l.y).sqrt();
-        let mut v = l.y.atan2(l.x) * INV_TWO_PI;
+        let mut v = crate::math::trig::atan2(l.y, l.x) * INV_TWO_PI;
         if v < 0.0 {
             v += 1.0;
         }

@@ -1,4 +1,4 @@
-//! Sine and cosine of small angles by polynomials, for the sample warps.
+//! Sine and cosine of small angles, and the arc tangent, by polynomials.
 //!
 //! The warps that need a sine-cosine pair (the concentric disk, hence the
 //! cosine-weighted hemisphere of every diffuse lobe) only ever ask for
@@ -8,6 +8,17 @@
 //! reduction, no call into the C library and no branch. The relative error
 //! is below 2·10⁻⁷ over the interval (tested against `f64`), at the level
 //! of `f32` rounding, so the warps' densities stay exact to rounding.
+//!
+//! [`atan2`] replaces the C library's `atan2f` where it runs per hit or per
+//! sample (a sphere's and a disk's texture coordinates, an environment
+//! map's lookup, a rectangle light's solid angle): libm's took 2.9 % of the
+//! caustic Cornell box's CPU time (perf), most of it for the texture
+//! coordinates of the two spheres. It folds the angle into [0, π/8] with
+//! one division (Cephes' `atanf` reduction: t or (t − 1)/(t + 1) of
+//! t = min/max of the two magnitudes) and evaluates Cephes' degree-9 odd
+//! polynomial; the error is below 2.5 ulp of the result (tested against
+//! `f64` over all quadrants), and signed zeros, infinities and NaN give what
+//! libm gives.
 //!
 //! No parameters.
 
@@ -21,9 +32,73 @@ pub fn sin_cos_quarter(x: f32) -> (f32, f32) {
     (s, c)
 }
 
+/// atan2(y, x) in (−π, π], as `f32::atan2` to within 2.5 ulp (see the module
+/// documentation).
+#[inline(always)]
+pub fn atan2(y: f32, x: f32) -> f32 {
+    use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+    let (ax, ay) = (x.abs(), y.abs());
+    // Zeros, infinities and NaN: the C library's conventions. (Tested
+    // before `min`/`max`, which pass over a NaN.)
+    if !(ax > 0.0 && ay > 0.0 && ax < f32::INFINITY && ay < f32::INFINITY) {
+        return y.atan2(x);
+    }
+    let (lo, hi) = (ax.min(ay), ax.max(ay));
+    // t = lo/hi in (0, 1]; above tan(π/8) the angle is π/4 + atan((t − 1)/(t + 1)).
+    let fold = lo > 0.414_213_57 * hi;
+    let r = if fold { (lo - hi) / (lo + hi) } else { lo / hi };
+    let z = r * r;
+    let p = (((8.053_744_5e-2 * z - 1.387_768_6e-1) * z + 1.997_771_1e-1) * z - 3.333_294_9e-1) * z * r + r;
+    // The constants' rounding errors (π/4 − f32(π/4) etc.) added to the
+    // small term first: the sums below cancel up to a bit of the result.
+    let mut a = if fold { FRAC_PI_4 + (p - 2.185_569_5e-8) } else { p };
+    if ay > ax {
+        a = FRAC_PI_2 + (-4.371_139e-8 - a);
+    }
+    if x.is_sign_negative() {
+        a = PI + (-8.742_278e-8 - a);
+    }
+    a.copysign(y)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn atan2_matches_f64_within_two_and_a_half_ulp_in_every_quadrant() {
+        let mut rng = crate::math::Pcg32::new(7, 3);
+        let ulp = |v: f32| (f32::from_bits(v.abs().to_bits() + 1) - v.abs()).max(f32::MIN_POSITIVE);
+        let mut worst = 0.0f64;
+        let mut check = |y: f32, x: f32| {
+            let (a, e) = (atan2(y, x), (y as f64).atan2(x as f64));
+            let err = (a as f64 - e).abs() / ulp(e as f32) as f64;
+            assert!(err <= 2.5, "atan2({y:e}, {x:e}) = {a:e}, f64 {e:e}: {err} ulp");
+            worst = worst.max(err);
+        };
+        for _ in 0..2_000_000 {
+            // Magnitudes over many octaves, both signs, near the axes and the diagonals.
+            let m = |r: &mut crate::math::Pcg32| (r.next_f32() - 0.5) * 2f32.powi((r.next_f32() * 40.0) as i32 - 20);
+            let (y, x) = (m(&mut rng), m(&mut rng));
+            check(y, x);
+            check(y, y * (1.0 + 1e-3 * (rng.next_f32() - 0.5)));
+        }
+        for k in 0..=10_000 {
+            // The fold at tan(π/8) and the diagonal, swept finely.
+            let t = k as f32 / 10_000.0;
+            check(t, 1.0);
+            check(1.0, t);
+            check(-t, -1.0);
+        }
+        assert!(worst > 0.0);
+        // The C library's conventions at zeros, infinities and NaN.
+        for (y, x) in [(0.0f32, 0.0f32), (-0.0, 0.0), (0.0, -0.0), (-0.0, -0.0), (1.0, 0.0), (-1.0, -0.0), (0.0, -1.0), (-0.0, -1.0), (f32::INFINITY, 1.0), (1.0, f32::NEG_INFINITY), (f32::INFINITY, f32::INFINITY)] {
+            assert_eq!(atan2(y, x).to_bits(), y.atan2(x).to_bits(), "atan2({y}, {x})");
+        }
+        assert!(atan2(f32::NAN, 1.0).is_nan() && atan2(1.0, f32::NAN).is_nan());
+        // Exact on the diagonal.
+        assert_eq!(atan2(1.0, 1.0), std::f32::consts::FRAC_PI_4);
+    }
 
     #[test]
     fn matches_f64_within_rounding_on_the_quarter() {
