@@ -111,8 +111,13 @@ def _render_chunk(source: Tuple[Any, ...], packed: Optional[bytes], mode: str, s
     as film-state bytes."""
     pid_dir = os.environ.get("SNELL_DISTRIBUTED_PID_DIR")
     if pid_dir:  # testing aid: lets a test kill the worker mid-task
-        with open(os.path.join(pid_dir, f"{os.getpid()}-{start}"), "w") as f:
+        # Written whole, then renamed into place: a reader must never see a
+        # half-written pid (a prefix is another process's pid, which the
+        # test would kill).
+        path = os.path.join(pid_dir, f"{os.getpid()}-{start}")
+        with open(path + ".tmp", "w") as f:
             f.write(str(os.getpid()))
+        os.replace(path + ".tmp", path)
     scene = _load(source, packed)
     return _snell.render_samples(scene, mode, start, end, threads, tile)
 

@@ -88,6 +88,8 @@ def test_a_worker_killed_mid_task_costs_only_that_task(cluster, reference):
         deadline = time.time() + 60
         while time.time() < deadline and not killed:
             for f in sorted(pid_dir.iterdir()):
+                if f.suffix == ".tmp":
+                    continue
                 pid = int(f.read_text() or 0)
                 if pid:
                     os.kill(pid, signal.SIGKILL)
