@@ -10,7 +10,7 @@
 //! of `f32` rounding, so the warps' densities stay exact to rounding.
 //!
 //! [`atan2`] replaces the C library's `atan2f` where it runs per hit or per
-//! sample (a sphere's and a disk's texture coordinates, an environment
+//! sample (the texture coordinates of spheres, disks and cylinders, an environment
 //! map's lookup, a rectangle light's solid angle): libm's took 2.9 % of the
 //! caustic Cornell box's CPU time (perf), most of it for the texture
 //! coordinates of the two spheres. It folds the angle into [0, π/8] with
