@@ -14,6 +14,7 @@ pub mod geometry;
 pub mod integrator;
 pub mod limits;
 pub mod math;
+pub mod medium;
 pub mod preview;
 pub mod render;
 pub mod sampler;

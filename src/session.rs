@@ -77,6 +77,9 @@ pub fn prepare(scene: &Scene, mode: Mode, what: &str) -> anyhow::Result<()> {
     if mode.polarized() && matches!(scene.integrator, Integrator::Sppm(_)) {
         anyhow::bail!("{what}: the polarized modes need a camera-path integrator (path or direct); photon mapping (sppm) does not carry polarization");
     }
+    if mode.polarized() && matches!(scene.integrator, Integrator::VolPath(_)) {
+        anyhow::bail!("{what}: volpath renders in the rgb and spectral modes only; its media do not carry polarization (use --mode rgb or spectral)");
+    }
     if mode.polarized() {
         if let Some(b) = scene.bsdfs.iter().find(|b| !b.has_mueller_model()) {
             anyhow::bail!(

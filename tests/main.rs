@@ -22,6 +22,7 @@ mod gallery_scenes;
 mod guiding;
 mod hardening;
 mod light_selection;
+mod media;
 mod mitsuba_reference;
 mod path_split;
 mod polarization;

@@ -199,7 +199,7 @@ fn unknown_plugin_of_every_kind() {
     let cases: &[(&str, &[&str])] = &[
         ("    <shape type=\"sphre\"/>\n", &["rectangle", "cube", "disk", "sphere", "obj", "ply"]),
         ("    <emitter type=\"sunsky\"/>\n", &["area", "point", "spot", "constant", "directional", "envmap", "projector"]),
-        ("    <integrator type=\"volpath\"/>\n", &["direct", "path", "ptracer", "bdpt", "sppm"]),
+        ("    <integrator type=\"volumetric\"/>\n", &["direct", "path", "ptracer", "bdpt", "sppm", "volpath"]),
         ("    <texture type=\"noise\"/>\n", &["bitmap", "checkerboard"]),
     ];
     for (body, choices) in cases {

@@ -158,6 +158,7 @@ impl NativeScene {
             I::Particle(_) => "ptracer",
             I::Aov(_) => "aov",
             I::Moment(_) => "moment",
+            I::VolPath(_) => "volpath",
             #[allow(unreachable_patterns)]
             _ => "other",
         }

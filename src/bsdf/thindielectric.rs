@@ -100,6 +100,14 @@ impl ThinDielectric {
         r + t * t * r / (1.0 - r * r)
     }
 
+    /// What a shadow ray keeps crossing the slab straight on at `si` with
+    /// |cos θ| = `cos_i`: (1 − slab reflectance) × `specular_transmittance`,
+    /// Mitsuba's null transmission of this BSDF, which its `volpath` (and
+    /// Snell's) lets shadow rays through.
+    pub fn straight_transmission<S: crate::spectrum::Spectrum>(&self, si: &crate::geometry::SurfaceInteraction, cos_i: f32, wl: &S::Wavelengths) -> S {
+        self.specular_transmittance.eval_spectrum::<S>(si, wl) * (1.0 - self.slab_reflectance(cos_i))
+    }
+
     /// The slab's Mueller matrices for reflection and transmission in the
     /// s/p frames, each polarisation's bounces summed on its own (see the
     /// top of the file); not rescaled to the unpolarised intensities.

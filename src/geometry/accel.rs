@@ -1595,7 +1595,7 @@ mod tests {
     }
 
     pub(super) fn shape(geometry: ShapeGeometry) -> Shape {
-        Shape { geometry, bsdf: 0, emitter: None, tangent_frame: false, pass_through: false }
+        Shape { geometry, bsdf: 0, emitter: None, tangent_frame: false, pass_through: false, interior: None, exterior: None }
     }
 
     /// Checks closest hits and occlusion of `n` random rays against brute

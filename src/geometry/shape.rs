@@ -30,6 +30,11 @@ pub struct Shape {
     /// lobe (`mask`, `null`) and it does not emit. Scenes where no shape has
     /// it keep the plain closest-hit and any-hit paths.
     pub pass_through: bool,
+    /// The media inside and outside this shape ([`crate::medium`]), indices
+    /// into [`crate::scene::Scene::media`]; a shape that names either is a
+    /// medium boundary for `volpath`.
+    pub interior: Option<u32>,
+    pub exterior: Option<u32>,
 }
 
 impl Shape {

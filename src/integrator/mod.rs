@@ -14,6 +14,7 @@ pub mod ptracer;
 pub mod sphere_connection;
 pub mod sppm;
 pub mod vcm;
+pub mod volpath;
 pub mod wavefront;
 
 pub use aov::{Aov, AovKind, Moment};
@@ -23,6 +24,7 @@ pub use path::PathTracer;
 pub use ptracer::ParticleTracer;
 pub use sppm::Sppm;
 pub use vcm::{Vcm, VcmMode};
+pub use volpath::VolPath;
 
 use crate::geometry::Ray;
 use crate::sampler::Sampler;
@@ -50,6 +52,8 @@ pub enum Integrator {
     /// Vertex connection and merging; rendered by its own driver
     /// ([`vcm::render_range`]), never through [`Integrator::li`].
     Vcm(Vcm),
+    /// Path tracing through participating media.
+    VolPath(VolPath),
 }
 
 impl Integrator {
@@ -62,7 +66,7 @@ impl Integrator {
             Integrator::Bdpt(_) => Some("bdpt"),
             Integrator::Vcm(_) => Some("vcm"),
             Integrator::Sppm(_) => Some("sppm"),
-            Integrator::Direct(_) | Integrator::Path(_) | Integrator::Aov(_) | Integrator::Moment(_) => None,
+            Integrator::Direct(_) | Integrator::Path(_) | Integrator::VolPath(_) | Integrator::Aov(_) | Integrator::Moment(_) => None,
         }
     }
 
@@ -73,9 +77,20 @@ impl Integrator {
         match self {
             Integrator::Direct(d) => d.li(scene, ray, sampler, wl),
             Integrator::Path(p) => p.li_any(scene, ray, sampler, wl),
+            Integrator::VolPath(v) => v.li(scene, ray, sampler, wl),
             Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => S::zero(),
             Integrator::Aov(a) => a.integrators.first().map_or(S::zero(), |(_, i)| i.li(scene, ray, sampler, wl)),
             Integrator::Moment(m) => m.integrators.first().map_or(S::zero(), |(_, i)| i.li(scene, ray, sampler, wl)),
+        }
+    }
+
+    /// Whether this integrator (or one nested in it) renders participating media.
+    pub fn renders_media(&self) -> bool {
+        match self {
+            Integrator::VolPath(_) => true,
+            Integrator::Aov(a) => a.integrators.iter().any(|(_, i)| i.renders_media()),
+            Integrator::Moment(m) => m.integrators.iter().any(|(_, i)| i.renders_media()),
+            _ => false,
         }
     }
 
@@ -91,7 +106,7 @@ impl Integrator {
 
     pub fn channel_count(&self) -> usize {
         match self {
-            Integrator::Direct(_) | Integrator::Path(_) | Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => 0,
+            Integrator::Direct(_) | Integrator::Path(_) | Integrator::VolPath(_) | Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => 0,
             _ => self.channel_names().len(),
         }
     }
@@ -114,6 +129,10 @@ impl Integrator {
             Integrator::Path(p) => {
                 let alpha = if scene.environment.is_some() && !p.hide_emitters { 1.0 } else { hits(p.hide_emitters) };
                 (p.li_any(scene, ray, sampler, wl), alpha)
+            }
+            Integrator::VolPath(v) => {
+                let alpha = if scene.environment.is_some() && !v.hide_emitters { 1.0 } else { hits(v.hide_emitters) };
+                (v.li(scene, ray, sampler, wl), alpha)
             }
             Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => (S::zero(), 0.0),
             Integrator::Aov(a) => a.sample(scene, ray, sampler, wl, channels),

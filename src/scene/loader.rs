@@ -45,7 +45,10 @@ pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
 pub const SAMPLERS: [&str; 7] = crate::sampler::NAMES;
-pub const INTEGRATORS: [&str; 9] = ["direct", "path", "ptracer", "bdpt", "sppm", "stokes", "aov", "moment", "vcm"];
+pub const INTEGRATORS: [&str; 12] = ["direct", "path", "ptracer", "bdpt", "sppm", "stokes", "aov", "moment", "vcm", "volpath", "volpathmis", "prbvolpath"];
+pub const MEDIA: [&str; 2] = ["homogeneous", "heterogeneous"];
+pub const PHASES: [&str; 2] = ["isotropic", "hg"];
+pub const VOLUMES: [&str; 2] = ["constvolume", "gridvolume"];
 
 /// The most samples per pixel, from the scene or from `--spp` (Mitsuba's
 /// sample counts are 32-bit; 2^24 keeps per-pixel sums exact in f32 weights).
@@ -154,6 +157,9 @@ struct Loader {
     ids: HashMap<String, Arc<Node>>,
     bsdf_cache: HashMap<*const Node, u32>,
     bsdfs: Vec<Bsdf>,
+    /// Participating media, each built once however many shapes name it.
+    media: Vec<crate::medium::Medium>,
+    medium_cache: HashMap<*const Node, u32>,
     shapes: Vec<Shape>,
     emitters: Vec<Emitter>,
     environment: Option<u32>,
@@ -281,6 +287,8 @@ impl Loader {
             ids,
             bsdf_cache: HashMap::new(),
             bsdfs: vec![],
+            media: vec![],
+            medium_cache: HashMap::new(),
             shapes: vec![],
             emitters: vec![],
             environment: None,
@@ -349,7 +357,8 @@ impl Loader {
             // Mitsuba allows): an area emitter that shapes <ref>, a film,
             // sampler or filter that a sensor <ref>s.
             let for_reference = matches!(node.kind, Kind::Film | Kind::Sampler | Kind::Rfilter)
-                || (node.kind == Kind::Emitter && node.plugin == "area");
+                || (node.kind == Kind::Emitter && node.plugin == "area")
+                || node.kind == Kind::Medium;
             if for_reference && node.id.is_some() {
                 continue;
             }
@@ -379,6 +388,13 @@ impl Loader {
                 }
                 Kind::Film | Kind::Sampler | Kind::Rfilter => {
                     return Err(SceneError::at(&node.loc, format!("<{}> belongs inside a <sensor>", node.kind.tag())));
+                }
+                Kind::Medium => {
+                    // Unnamed and so unused; built for its errors.
+                    self.medium(&node)?;
+                }
+                Kind::Phase | Kind::Volume => {
+                    return Err(SceneError::at(&node.loc, format!("<{}> belongs inside a <medium>", node.kind.tag())));
                 }
                 Kind::Scene => return Err(SceneError::at(&node.loc, "nested <scene> elements are not allowed")),
             }
@@ -454,6 +470,15 @@ impl Loader {
             }
         }
         let lights = LightSelector::new(light_sampling, &self.emitters, &self.shapes);
+        if !self.media.is_empty() && !integrator.renders_media() {
+            let named = self.shapes.iter().any(|s| s.interior.is_some() || s.exterior.is_some());
+            if named {
+                self.warnings.borrow_mut().push(format!(
+                    "warning: {}: the scene has participating media, which only the volpath integrator renders; this integrator renders as if space were empty (as Mitsuba's does)",
+                    root.loc.file.path.display()
+                ));
+            }
+        }
         // Included XML files first (every file some element comes from),
         // then the meshes and images in the order read.
         let mut files = vec![];
@@ -465,6 +490,8 @@ impl Loader {
         }
         Ok(Scene {
             bsdfs: self.bsdfs,
+            media: self.media,
+            camera_medium: None,
             emitters: self.emitters,
             accel,
             camera,
@@ -567,10 +594,15 @@ impl Loader {
             Some(e) => Some(self.area_emitter(e, shape_index)?),
             None => None,
         };
-        props.finish()?;
         let tangent_frame = self.bsdfs[bsdf as usize].needs_tangent_frame();
         let pass_through = self.bsdfs[bsdf as usize].passes_through() && emitter.is_none();
-        let shape = Shape { geometry, bsdf, emitter, tangent_frame, pass_through };
+        let interior = self.shape_medium(&props, "interior")?;
+        let exterior = self.shape_medium(&props, "exterior")?;
+        if let (true, Some(_)) = (self.in_group, interior.or(exterior)) {
+            return Err(SceneError::at(&node.loc, "a shape inside a shapegroup cannot bound a medium (instances of one medium boundary would share it)"));
+        }
+        props.finish()?;
+        let shape = Shape { geometry, bsdf, emitter, tangent_frame, pass_through, interior, exterior };
         if shape.area() <= 0.0 || !shape.area().is_finite() {
             return Err(SceneError::at(&node.loc, format!("this {} has zero or non-finite surface area", node.plugin)));
         }
@@ -579,6 +611,128 @@ impl Loader {
         }
         self.shapes.push(shape);
         Ok(())
+    }
+
+    // ----------------------------------------------------------------- media
+
+    /// The medium a shape names as `interior` or `exterior` (inline or by reference).
+    fn shape_medium(&mut self, props: &Props, side: &str) -> Result<Option<u32>> {
+        let Some(child) = props.child_named(side) else { return Ok(None) };
+        let node = self.resolve(child)?;
+        if node.kind != Kind::Medium {
+            return Err(SceneError::at(&child.loc, format!("a shape's \"{side}\" must be a <medium>, not a <{}>", node.kind.tag())).with_choices(&MEDIA));
+        }
+        self.medium(&node).map(Some)
+    }
+
+    fn medium(&mut self, node: &Arc<Node>) -> Result<u32> {
+        let key = Arc::as_ptr(node);
+        if let Some(&i) = self.medium_cache.get(&key) {
+            return Ok(i);
+        }
+        let props = Props::new(node);
+        if !MEDIA.contains(&node.plugin.as_str()) {
+            return Err(unknown_plugin(node, &MEDIA));
+        }
+        let homogeneous = node.plugin == "homogeneous";
+        let sigma_t = self.volume_input(&props, "sigma_t", 1.0)?;
+        if homogeneous && !sigma_t.is_constant() {
+            let loc = props.child_named("sigma_t").map_or(&node.loc, |c| &c.loc);
+            return Err(SceneError::at(loc, "a homogeneous medium's sigma_t is a constant; a grid of densities needs a heterogeneous medium").with_choices(&MEDIA));
+        }
+        let albedo = self.volume_input(&props, "albedo", 0.75)?;
+        if albedo.max > 1.0 {
+            self.warnings.borrow_mut().push(located_warning(&node.loc, &format!("the medium's albedo reaches {} (above 1, it creates energy)", albedo.max)));
+        }
+        let scale = props.float_checked("scale", 1.0, |v| v >= 0.0 && v.is_finite(), "finite and not negative")?;
+        let sample_emitters = props.bool("sample_emitters", true)?;
+        // Speed hints of Mitsuba's that do not change the image.
+        props.bool("has_spectral_extinction", true)?;
+        if !homogeneous {
+            props.int_checked("majorant_resolution_factor", 0, |v| v >= 0, "not negative")?;
+            props.float_checked("majorant_factor", 1.01, |v| v > 0.0, "positive")?;
+        }
+        let phases = props.children_of(Kind::Phase);
+        if phases.len() > 1 {
+            return Err(SceneError::at(&phases[1].loc, "a medium takes at most one <phase>"));
+        }
+        let phase = match phases.first() {
+            Some(c) => self.phase(&self.resolve(c)?)?,
+            None => crate::medium::PhaseFunction::Isotropic,
+        };
+        props.finish()?;
+        self.media.push(crate::medium::Medium { sigma_t, albedo, scale, phase, sample_emitters, homogeneous });
+        let i = self.media.len() as u32 - 1;
+        self.medium_cache.insert(key, i);
+        Ok(i)
+    }
+
+    fn phase(&self, node: &Arc<Node>) -> Result<crate::medium::PhaseFunction> {
+        let props = Props::new(node);
+        let phase = match node.plugin.as_str() {
+            "isotropic" => crate::medium::PhaseFunction::Isotropic,
+            "hg" => crate::medium::PhaseFunction::HenyeyGreenstein { g: props.float_checked("g", 0.8, |g| g > -1.0 && g < 1.0, "in (-1, 1)")? },
+            _ => return Err(unknown_plugin(node, &PHASES)),
+        };
+        props.finish()?;
+        Ok(phase)
+    }
+
+    /// A medium's input `name`: a nested `<volume>` or a constant.
+    fn volume_input(&self, props: &Props, name: &str, default: f32) -> Result<crate::medium::Volume> {
+        if let Some(child) = props.child_named(name) {
+            let node = self.resolve(child)?;
+            if node.kind != Kind::Volume {
+                return Err(SceneError::at(&child.loc, format!("\"{name}\" must be a <volume> or a value, not a <{}>", node.kind.tag())).with_choices(&VOLUMES));
+            }
+            return self.volume(&node);
+        }
+        let value = props.color(name, Rgb::new(default, default, default))?;
+        if value.0.iter().any(|v| !(*v >= 0.0) || !v.is_finite()) {
+            return Err(props.error_at(name, format!("\"{name}\" must be finite and not negative")));
+        }
+        Ok(crate::medium::Volume::constant(value, Transform::IDENTITY))
+    }
+
+    fn volume(&self, node: &Arc<Node>) -> Result<crate::medium::Volume> {
+        use crate::medium::{Grid, Volume, WrapMode};
+        let props = Props::new(node);
+        let to_world = props.transform("to_world")?;
+        let volume = match node.plugin.as_str() {
+            "constvolume" => {
+                let value = props.color("value", Rgb::new(1.0, 1.0, 1.0))?;
+                if value.0.iter().any(|v| !(*v >= 0.0) || !v.is_finite()) {
+                    return Err(props.error_at("value", "a volume's value must be finite and not negative"));
+                }
+                Volume::constant(value, to_world)
+            }
+            "gridvolume" | "grid" => {
+                let file = props.string_req("filename")?;
+                let nearest = props.choice("filter_type", "trilinear", &["trilinear", "nearest"])? == "nearest";
+                let wrap = match props.choice("wrap_mode", "clamp", &["clamp", "repeat", "mirror"])? {
+                    "repeat" => WrapMode::Repeat,
+                    "mirror" => WrapMode::Mirror,
+                    _ => WrapMode::Clamp,
+                };
+                let use_grid_bbox = props.bool("use_grid_bbox", false)?;
+                let max_value = props.float_opt("max_value")?;
+                // Colour conversion switch and GPU hint: no effect here.
+                props.bool("raw", false)?;
+                props.bool("accel", true)?;
+                let path = self.input_file(node, file);
+                let grid = Grid::read(&path, nearest, wrap).map_err(|e| with_search_help(props.error_at("filename", e), node, file))?;
+                let to_world = if use_grid_bbox {
+                    let placed = grid.bounds_transform().ok_or_else(|| props.error_at("use_grid_bbox", "the grid file's bounds are empty or not finite"))?;
+                    to_world.compose(&placed)
+                } else {
+                    to_world
+                };
+                Volume::grid(grid, to_world, max_value)
+            }
+            _ => return Err(unknown_plugin(node, &VOLUMES)),
+        };
+        props.finish()?;
+        Ok(volume)
     }
 
     /// Points every `mesh_attribute` texture at its attribute on each mesh;
@@ -1305,6 +1459,20 @@ impl Loader {
                     initial_radius,
                     radius_footprints,
                     alpha,
+                })
+            }
+            "volpath" | "volpathmis" | "prbvolpath" => {
+                let max_depth = props.int_checked("max_depth", -1, |v| v >= -1, "-1 (unlimited) or a non-negative integer")?;
+                let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
+                self.light_sampling(&props, &LightSampling::NAMES)?;
+                if node.plugin == "volpathmis" {
+                    // Which of its estimators are on; the image converges to the same.
+                    props.bool("use_spectral_mis", true)?;
+                }
+                Integrator::VolPath(crate::integrator::VolPath {
+                    max_depth: self.depth_limit(&props, "max_depth", max_depth),
+                    rr_depth: self.depth_limit(&props, "rr_depth", rr_depth),
+                    hide_emitters: props.bool("hide_emitters", false)?,
                 })
             }
             _ => return Err(unknown_plugin(node, &INTEGRATORS)),

@@ -37,6 +37,11 @@ pub struct Scene {
     pub shapes: Vec<Shape>,
     pub bsdfs: Vec<Bsdf>,
     pub emitters: Vec<Emitter>,
+    /// Participating media ([`crate::medium`]), named by shapes' `interior`
+    /// and `exterior`; only `volpath` renders them.
+    pub media: Vec<crate::medium::Medium>,
+    /// The medium the camera is in (none: Snell's sensors take no medium).
+    pub camera_medium: Option<u32>,
     pub accel: Accel,
     pub camera: Camera,
     pub film: FilmSpec,
@@ -129,7 +134,7 @@ impl Scene {
 
     /// The ray continuing straight on past the surface at `si`.
     #[inline]
-    fn continue_past(ray: &Ray, si: &SurfaceInteraction) -> Ray {
+    pub(crate) fn continue_past(ray: &Ray, si: &SurfaceInteraction) -> Ray {
         let o = si.spawn_origin(ray.d);
         Ray { o, d: ray.d, tmax: ray.tmax - (o - ray.o).length() }
     }

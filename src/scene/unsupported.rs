@@ -4,7 +4,6 @@
 //!
 //! | what | Mitsuba names |
 //! |---|---|
-//! | participating media | `<medium>`, `<phase>`, `<volume>` elements; `homogeneous`, `heterogeneous` media; `volpath`, `volpathmis`, `prbvolpath` integrators; `gridvolume`/`constvolume` volumes |
 //! | curves | `bsplinecurve`, `linearcurve` shapes |
 //! | signed distance fields | `sdfgrid` shape |
 //! | id aliases | `<alias id="…" as="…"/>` |
@@ -17,9 +16,6 @@ use super::xml::Kind;
 /// The feature an unsupported element tag belongs to.
 pub fn element(tag: &str) -> Option<&'static str> {
     match tag {
-        "medium" => Some("participating media"),
-        "phase" => Some("phase functions of participating media"),
-        "volume" => Some("volume data of participating media"),
         "alias" => Some("aliases of object ids"),
         _ => None,
     }
@@ -28,10 +24,8 @@ pub fn element(tag: &str) -> Option<&'static str> {
 /// The feature an unsupported plugin of `kind` belongs to.
 pub fn plugin(kind: Kind, name: &str) -> Option<&'static str> {
     match (kind, name) {
-        (Kind::Integrator, "volpath" | "volpathmis" | "prbvolpath") => Some("participating media"),
         (Kind::Shape, "bsplinecurve" | "linearcurve") => Some("curves"),
         (Kind::Shape, "sdfgrid") => Some("signed distance fields"),
-        (Kind::Texture, "gridvolume" | "constvolume") => Some("participating media"),
         _ => None,
     }
 }

@@ -36,10 +36,13 @@ pub enum Kind {
     Sampler,
     Integrator,
     Rfilter,
+    Medium,
+    Phase,
+    Volume,
 }
 
 impl Kind {
-    pub const ALL: [Kind; 10] = [
+    pub const ALL: [Kind; 13] = [
         Kind::Scene,
         Kind::Shape,
         Kind::Bsdf,
@@ -50,6 +53,9 @@ impl Kind {
         Kind::Sampler,
         Kind::Integrator,
         Kind::Rfilter,
+        Kind::Medium,
+        Kind::Phase,
+        Kind::Volume,
     ];
 
     pub fn tag(self) -> &'static str {
@@ -64,6 +70,9 @@ impl Kind {
             Kind::Sampler => "sampler",
             Kind::Integrator => "integrator",
             Kind::Rfilter => "rfilter",
+            Kind::Medium => "medium",
+            Kind::Phase => "phase",
+            Kind::Volume => "volume",
         }
     }
 
