@@ -97,7 +97,10 @@ impl VolPath {
                     let wi = -ray.d;
                     let at = ShadingPoint::at(p);
                     if med.sample_emitters {
-                        if let Some((d, weight, pdf, delta)) = sample_light::<S>(scene, &at, p, Some(m), sampler, wl) {
+                        // A medium point: no normal, so no offset and no side.
+                        let mut point = SurfaceInteraction::EMPTY;
+                        point.p = p;
+                        if let Some((d, weight, pdf, delta)) = sample_light::<S>(scene, &point, None, Some(m), sampler, wl) {
                             let f = med.phase.eval(wi, d);
                             let w = if delta { 1.0 } else { mis_power(pdf, f) };
                             result += beta * weight * (f * w);
@@ -157,9 +160,7 @@ impl VolPath {
                 S::terminate_secondary(wl);
             }
             if bsdf.lobes().intersects(Lobe::SMOOTH) {
-                let at = ShadingPoint::from(&si);
-                // The light's medium is that on the side the shadow ray leaves to.
-                if let Some((d, weight, pdf, delta)) = sample_light_from_surface::<S>(scene, &si, shape, medium, sampler, wl, &at) {
+                if let Some((d, weight, pdf, delta)) = sample_light::<S>(scene, &si, Some(shape), medium, sampler, wl) {
                     let wo = si.to_local(d);
                     let (f, bsdf_pdf): (S, f32) = bsdf.eval_pdf(&BsdfContext::RADIANCE, &si, si.wi, wo, wl);
                     if !f.is_zero() {
@@ -197,36 +198,23 @@ impl VolPath {
     }
 }
 
-/// An emitter sample for the point `p` in `medium` (`at` selects the
-/// emitter), attenuated along the way: (direction, L·T/pdf, pdf, delta).
-fn sample_light<S: Spectrum>(scene: &Scene, at: &ShadingPoint, p: Vec3, medium: Option<u32>, sampler: &mut Sampler, wl: &S::Wavelengths) -> Option<(Vec3, S, f32, bool)> {
-    let mut point = SurfaceInteraction::EMPTY;
-    point.p = p;
-    let u = sampler.next_2d();
-    let (index, pmf, ux) = scene.select_emitter(u.x, at)?;
-    let (sample, ray) = scene.sample_emitter_ray_from::<S>(&point, index, pmf, ux, u.y, wl)?;
-    let tr = transmittance::<S>(scene, ray, medium, sampler, wl);
-    if tr.is_zero() {
-        return None;
-    }
-    Some((sample.d, sample.weight * tr, sample.pdf, sample.delta))
-}
-
-/// [`sample_light`] from the surface point `si` (the shadow ray leaves
-/// from its offset origin, into the medium on the side it goes to).
-fn sample_light_from_surface<S: Spectrum>(
+/// An emitter sample for the point `si` (a surface point, or a point in a
+/// medium with a zero normal), attenuated along the way: (direction,
+/// L·T/pdf, pdf, delta). `boundary` is the shape `si` lies on, if any: the
+/// shadow ray then starts in the medium on the side it leaves to.
+fn sample_light<S: Spectrum>(
     scene: &Scene,
     si: &SurfaceInteraction,
-    shape: &Shape,
+    boundary: Option<&Shape>,
     medium: Option<u32>,
     sampler: &mut Sampler,
     wl: &S::Wavelengths,
-    at: &ShadingPoint,
 ) -> Option<(Vec3, S, f32, bool)> {
     let u = sampler.next_2d();
-    let (index, pmf, ux) = scene.select_emitter(u.x, at)?;
+    let (index, pmf, ux) = scene.select_emitter(u.x, &ShadingPoint::from(si))?;
     let (sample, ray) = scene.sample_emitter_ray_from::<S>(si, index, pmf, ux, u.y, wl)?;
-    let tr = transmittance::<S>(scene, ray, medium_after(shape, si, ray.d, medium), sampler, wl);
+    let medium = boundary.map_or(medium, |shape| medium_after(shape, si, ray.d, medium));
+    let tr = transmittance::<S>(scene, ray, medium, sampler, wl);
     if tr.is_zero() {
         return None;
     }

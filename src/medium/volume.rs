@@ -196,8 +196,8 @@ impl Grid {
     pub fn eval(&self, q: Vec3) -> Rgb {
         let q = [q.x, q.y, q.z];
         if self.nearest {
-            let i: Vec<usize> = (0..3).map(|a| self.index((q[a] * self.res[a] as f32).floor() as i64, a)).collect();
-            return self.texel(i[0], i[1], i[2]);
+            let i = |a: usize| self.index((q[a] * self.res[a] as f32).floor() as i64, a);
+            return self.texel(i(0), i(1), i(2));
         }
         // Cell centres at (i + ½) / res.
         let mut lo = [0usize; 3];
