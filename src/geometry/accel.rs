@@ -47,6 +47,7 @@ mod simd;
 mod stats;
 mod stream;
 
+use super::curve::CurvePiece;
 use super::cylinder::Cylinder;
 use super::disk::Disk;
 use super::mesh::Shared;
@@ -73,6 +74,8 @@ enum PrimGeom {
     Disk { to_object: Box<Transform> },
     /// World → object, radius, length.
     Cylinder(Box<(Transform, f32, f32)>),
+    /// A linear curve segment or a piece of a B-spline segment.
+    Curve(Box<CurvePiece>),
     /// Index into `Accel::instances`.
     Instance(u32),
 }
@@ -368,6 +371,10 @@ fn prim_geom(shape: &Shape, prim: usize) -> (PrimGeom, Aabb) {
             let to_object = Transform { matrix: c.to_world.inverse, inverse: c.to_world.matrix };
             (PrimGeom::Cylinder(Box::new((to_object, c.radius, c.length))), Aabb { lo: lo.into(), hi: hi.into() })
         }
+        ShapeGeometry::Curves(c) => {
+            let (lo, hi) = c.piece_bounds(prim as u32);
+            (PrimGeom::Curve(Box::new(c.piece_data(prim as u32))), Aabb { lo: lo.into(), hi: hi.into() })
+        }
     }
 }
 
@@ -407,6 +414,11 @@ fn intersect_prim_bary(g: &PrimGeom, o: Vec3A, d: Vec3A, tmax: f32) -> (f32, f32
         PrimGeom::Sphere { center, radius } => (Sphere::intersect(*center, *radius, o.into(), d.into(), tmax), 0.0, 0.0),
         PrimGeom::Disk { to_object } => (Disk::intersect(to_object, o.into(), d.into(), tmax), 0.0, 0.0),
         PrimGeom::Cylinder(c) => (Cylinder::intersect(&c.0, c.1, c.2, o.into(), d.into(), tmax), 0.0, 0.0),
+        // The curve parameter rides in the first barycentric.
+        PrimGeom::Curve(c) => {
+            let (t, u) = c.intersect(o.into(), d.into(), tmax);
+            (t, u, 0.0)
+        }
         // Instances are traced by `Accel` itself; never reached.
         PrimGeom::Instance(_) => MISS,
     }
@@ -1427,11 +1439,12 @@ impl Accel {
                 continue;
             }
             // Hits at exactly `best.t` too (the tie rule weighs them).
-            let (t, _, _) = intersect_prim_bary(g, r.o, r.d, best.t.next_up());
+            // (u, v): a curve's parameter; zero for the other shapes.
+            let (t, u, v) = intersect_prim_bary(g, r.o, r.d, best.t.next_up());
             let pr = self.other_refs[oi as usize];
             let key = tie_key(pr.shape, pr.prim, NO_INSTANCE);
             if best.accepts(t, key) {
-                best.set(t, key, 0.0, 0.0);
+                best.set(t, key, u, v);
             }
         }
     }

@@ -1,7 +1,8 @@
-//! Geometry: rays, shapes (triangle meshes, spheres, disks), surface
+//! Geometry: rays, shapes (triangle meshes, spheres, disks, cylinders, curves), surface
 //! interactions and the acceleration structure over all of them.
 
 pub mod accel;
+pub mod curve;
 pub mod cylinder;
 pub mod disk;
 pub mod interaction;

@@ -1,6 +1,7 @@
 //! A shape: geometry plus the material and (optionally) the area emitter
 //! attached to it.
 
+use super::curve::Curves;
 use super::cylinder::Cylinder;
 use super::disk::Disk;
 use super::interaction::SurfaceInteraction;
@@ -15,6 +16,7 @@ pub enum ShapeGeometry {
     Sphere(Sphere),
     Disk(Disk),
     Cylinder(Cylinder),
+    Curves(Curves),
 }
 
 #[derive(Clone, Debug)]
@@ -42,6 +44,7 @@ impl Shape {
         match &self.geometry {
             ShapeGeometry::Mesh(m) => m.triangles.len(),
             ShapeGeometry::Sphere(_) | ShapeGeometry::Disk(_) | ShapeGeometry::Cylinder(_) => 1,
+            ShapeGeometry::Curves(c) => c.primitive_count(),
         }
     }
 
@@ -51,6 +54,7 @@ impl Shape {
             ShapeGeometry::Sphere(s) => s.area(),
             ShapeGeometry::Disk(d) => d.area,
             ShapeGeometry::Cylinder(c) => c.area(),
+            ShapeGeometry::Curves(c) => c.area(),
         }
     }
 
@@ -115,8 +119,12 @@ impl Shape {
                 let (p, n, uv, _) = c.surface(ray_o + ray_d * t);
                 (p, n, n, uv, Vec2::ZERO)
             }
+            ShapeGeometry::Curves(c) => {
+                let (p, n, uv, _, _) = c.surface(prim, bary.0, ray_o + ray_d * t);
+                (p, n, n, uv, Vec2::new(bary.0, 0.0))
+            }
         };
-        let (frame, dp_du, dp_dv) = match self.tangent_frame.then(|| self.dp_duv(prim, p)).flatten() {
+        let (frame, dp_du, dp_dv) = match self.tangent_frame.then(|| self.dp_duv(prim, p, (bary.x, bary.y))).flatten() {
             Some((dp_du, dp_dv)) => (Frame::from_normal_and_tangent(sh_n, dp_du), dp_du, dp_dv),
             None => {
                 let frame = Frame::from_normal(sh_n);
@@ -183,7 +191,7 @@ impl Shape {
     /// them (magnitudes included, which bump mapping needs): a mesh's
     /// texture coordinates; the sphere's u = φ/2π, v = θ/π; the disk's
     /// u = r, v = φ/2π.
-    fn dp_duv(&self, prim: u32, p: Vec3) -> Option<(Vec3, Vec3)> {
+    fn dp_duv(&self, prim: u32, p: Vec3, bary: (f32, f32)) -> Option<(Vec3, Vec3)> {
         use std::f32::consts::PI;
         match &self.geometry {
             ShapeGeometry::Mesh(m) => m.dp_duv(prim as usize),
@@ -202,6 +210,10 @@ impl Shape {
                 Some((d.to_world.vector(Vec3::new(cos_phi, sin_phi, 0.0)), d.to_world.vector(Vec3::new(-l.y, l.x, 0.0) * (2.0 * PI))))
             }
             ShapeGeometry::Cylinder(c) => Some((c.surface(p).3, c.to_world.vector(Vec3::Z * c.length))),
+            ShapeGeometry::Curves(c) => {
+                let (_, _, _, dp_du, dp_dv) = c.surface(prim, bary.0, p);
+                Some((dp_du, dp_dv))
+            }
         }
     }
 
@@ -213,6 +225,8 @@ impl Shape {
             ShapeGeometry::Mesh(m) => m.sample_position(u),
             ShapeGeometry::Disk(d) => Some(d.sample_position(u)),
             ShapeGeometry::Cylinder(c) => Some(c.sample_position(u)),
+            // Never an emitter (the loader refuses one).
+            ShapeGeometry::Curves(_) => None,
         }
     }
 
@@ -227,6 +241,7 @@ impl Shape {
             ShapeGeometry::Mesh(m) => m.sample_position(u)?,
             ShapeGeometry::Disk(d) => d.sample_position(u),
             ShapeGeometry::Cylinder(c) => c.sample_position(u),
+            ShapeGeometry::Curves(_) => return None,
         };
         ps.towards(p)
     }

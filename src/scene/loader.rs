@@ -11,6 +11,7 @@ use crate::bsdf::{BlendBsdf, Bsdf, BumpMap, Conductor, Dielectric, Diffuse, Mask
 use crate::emitter::{AreaLight, ConstantLight, DirectionalLight, Emitter, EnvironmentMap, PointLight, Projector, SpotLight};
 use crate::film::{FilmSpec, Filter, FilterKind, PixelFormat};
 use crate::geometry::accel::Accel;
+use crate::geometry::curve::{CurveKind, Curves};
 use crate::geometry::cylinder::Cylinder;
 use crate::geometry::disk::Disk;
 use crate::geometry::mesh::Mesh;
@@ -33,7 +34,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-pub const SHAPES: [&str; 10] = ["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "shapegroup", "instance"];
+pub const SHAPES: [&str; 12] = ["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "linearcurve", "bsplinecurve", "shapegroup", "instance"];
 pub const BSDFS: [&str; 20] = [
     "birefringent", "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer", "pplastic",
     "principled", "principledthin", "retarder",
@@ -542,6 +543,14 @@ impl Loader {
                 ShapeGeometry::Cylinder(cylinder)
             }
             "obj" | "ply" | "serialized" => ShapeGeometry::Mesh(self.mesh_file(&props, &to_world, flip)?),
+            "linearcurve" | "bsplinecurve" => {
+                let kind = if node.plugin == "linearcurve" { CurveKind::Linear } else { CurveKind::BSpline };
+                let filename = props.string_req("filename")?;
+                let path = self.input_file(node, filename);
+                let file_loc = node.props.iter().find(|p| p.name == "filename").map_or(&node.loc, |p| &p.loc);
+                let curves = Curves::load(&path, &to_world, kind).map_err(|e| with_search_help(SceneError::at(file_loc, e), node, filename))?;
+                ShapeGeometry::Curves(curves)
+            }
             _ => return Err(unknown_plugin(node, &SHAPES)),
         };
         let shape_index = self.shapes.len() as u32;
@@ -567,6 +576,10 @@ impl Loader {
         }
         if emitter_nodes.len() > 1 {
             return Err(SceneError::at(&emitter_nodes[1].loc, "a shape takes at most one emitter"));
+        }
+        if let (ShapeGeometry::Curves(_), Some(e)) = (&geometry, emitter_nodes.first()) {
+            return Err(SceneError::at(&e.loc, format!("a {} cannot emit: curves cannot be sampled by area (nor can Mitsuba's)", node.plugin))
+                .with_help("make the light a mesh, sphere, disk, rectangle or cylinder"));
         }
         if let (true, Some(e)) = (self.in_group, emitter_nodes.first()) {
             return Err(SceneError::at(&e.loc, "a shape inside a shapegroup cannot emit: Mitsuba does not support instancing of emitters")

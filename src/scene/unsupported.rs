@@ -4,7 +4,6 @@
 //!
 //! | what | Mitsuba names |
 //! |---|---|
-//! | curves | `bsplinecurve`, `linearcurve` shapes |
 //! | signed distance fields | `sdfgrid` shape |
 //! | id aliases | `<alias id="…" as="…"/>` |
 //!
@@ -24,7 +23,6 @@ pub fn element(tag: &str) -> Option<&'static str> {
 /// The feature an unsupported plugin of `kind` belongs to.
 pub fn plugin(kind: Kind, name: &str) -> Option<&'static str> {
     match (kind, name) {
-        (Kind::Shape, "bsplinecurve" | "linearcurve") => Some("curves"),
         (Kind::Shape, "sdfgrid") => Some("signed distance fields"),
         _ => None,
     }
