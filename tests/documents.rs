@@ -258,13 +258,13 @@ fn unsupported_features_are_named() {
     let text = format!("<scene version=\"3.0.0\">\n    {SENSOR}\n    <shape type=\"sphere\">\n        <phase type=\"hg\"/>\n    </shape>\n</scene>\n");
     let e = snell::load_str(&repo("tests/scenes/unsupported.xml"), &text, &LoadOptions::default()).err().map(|e| e.to_string()).unwrap_or_default();
     assert!(e.contains("<phase>") && e.contains(":8:9"), "{e}");
-    // Curves are read now: without their file, the error is the missing parameter's.
-    for shape in ["bsplinecurve", "linearcurve"] {
+    // Curves and SDF grids are read now: without their file, the error is the missing parameter's.
+    for shape in ["bsplinecurve", "linearcurve", "sdfgrid"] {
         let text = format!("<scene version=\"3.0.0\">\n    {SENSOR}\n    <shape type=\"{shape}\"/>\n</scene>\n");
         let e = snell::load_str(&repo("tests/scenes/unsupported.xml"), &text, &LoadOptions::default()).err().map(|e| e.to_string()).unwrap_or_default();
         assert!(e.contains("filename") && !e.contains("not supported"), "{e}");
     }
-    assert_unsupported("    <shape type=\"sdfgrid\"/>\n", 7, 5, &["sdfgrid", "signed distance fields"]);
+    assert_unsupported("    <alias id=\"a\" as=\"b\"/>\n", 7, 5, &["<alias>", "aliases"]);
 }
 
 #[test]

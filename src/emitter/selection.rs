@@ -506,8 +506,8 @@ fn bounds_of(e: &Emitter, shapes: &[Shape]) -> Option<LightBounds> {
                     let (lo, hi) = c.bounds();
                     (lo, hi, c.to_world.vector(Vec3::Z).normalize_or(Vec3::Z), 0.0)
                 }
-                // The loader never lets a curve emit.
-                ShapeGeometry::Curves(_) => return None,
+                // The loader never lets a curve or an SDF grid emit.
+                ShapeGeometry::Curves(_) | ShapeGeometry::SdfGrid(_) => return None,
             };
             Some(LightBounds::new(lo, hi, w, phi, cos_o, cos_half_pi))
         }

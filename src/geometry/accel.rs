@@ -51,6 +51,7 @@ use super::curve::CurvePiece;
 use super::cylinder::Cylinder;
 use super::disk::Disk;
 use super::mesh::Shared;
+use super::sdfgrid::SdfGrid;
 use super::shape::{Shape, ShapeGeometry};
 use super::sphere::Sphere;
 use super::Ray;
@@ -76,6 +77,8 @@ enum PrimGeom {
     Cylinder(Box<(Transform, f32, f32)>),
     /// A linear curve segment or a piece of a B-spline segment.
     Curve(Box<CurvePiece>),
+    /// A signed distance field grid (one primitive; it walks its own voxels).
+    Sdf(Box<SdfGrid>),
     /// Index into `Accel::instances`.
     Instance(u32),
 }
@@ -375,6 +378,10 @@ fn prim_geom(shape: &Shape, prim: usize) -> (PrimGeom, Aabb) {
             let (lo, hi) = c.piece_bounds(prim as u32);
             (PrimGeom::Curve(Box::new(c.piece_data(prim as u32))), Aabb { lo: lo.into(), hi: hi.into() })
         }
+        ShapeGeometry::SdfGrid(g) => {
+            let (lo, hi) = g.bounds();
+            (PrimGeom::Sdf(Box::new(g.clone())), Aabb { lo: lo.into(), hi: hi.into() })
+        }
     }
 }
 
@@ -419,6 +426,7 @@ fn intersect_prim_bary(g: &PrimGeom, o: Vec3A, d: Vec3A, tmax: f32) -> (f32, f32
             let (t, u) = c.intersect(o.into(), d.into(), tmax);
             (t, u, 0.0)
         }
+        PrimGeom::Sdf(g) => (g.intersect(o.into(), d.into(), tmax), 0.0, 0.0),
         // Instances are traced by `Accel` itself; never reached.
         PrimGeom::Instance(_) => MISS,
     }

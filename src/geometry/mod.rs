@@ -1,4 +1,4 @@
-//! Geometry: rays, shapes (triangle meshes, spheres, disks, cylinders, curves), surface
+//! Geometry: rays, shapes (triangle meshes, spheres, disks, cylinders, curves, SDF grids), surface
 //! interactions and the acceleration structure over all of them.
 
 pub mod accel;
@@ -9,6 +9,7 @@ pub mod interaction;
 pub mod mesh;
 pub mod mesh_io;
 pub mod ray;
+pub mod sdfgrid;
 pub mod serialized;
 pub mod shape;
 pub mod sphere;

@@ -5,6 +5,7 @@ use super::curve::Curves;
 use super::cylinder::Cylinder;
 use super::disk::Disk;
 use super::interaction::SurfaceInteraction;
+use super::sdfgrid::SdfGrid;
 use super::mesh::{Mesh, PositionSample, area_pdf_to_solid_angle};
 use super::sphere::{DirectionSample, Sphere};
 use crate::math::{Frame, Transform};
@@ -17,6 +18,7 @@ pub enum ShapeGeometry {
     Disk(Disk),
     Cylinder(Cylinder),
     Curves(Curves),
+    SdfGrid(SdfGrid),
 }
 
 #[derive(Clone, Debug)]
@@ -43,7 +45,7 @@ impl Shape {
     pub fn primitive_count(&self) -> usize {
         match &self.geometry {
             ShapeGeometry::Mesh(m) => m.triangles.len(),
-            ShapeGeometry::Sphere(_) | ShapeGeometry::Disk(_) | ShapeGeometry::Cylinder(_) => 1,
+            ShapeGeometry::Sphere(_) | ShapeGeometry::Disk(_) | ShapeGeometry::Cylinder(_) | ShapeGeometry::SdfGrid(_) => 1,
             ShapeGeometry::Curves(c) => c.primitive_count(),
         }
     }
@@ -55,6 +57,8 @@ impl Shape {
             ShapeGeometry::Disk(d) => d.area,
             ShapeGeometry::Cylinder(c) => c.area(),
             ShapeGeometry::Curves(c) => c.area(),
+            // Not computed (nor is it by Mitsuba): an SDF grid never emits.
+            ShapeGeometry::SdfGrid(_) => 0.0,
         }
     }
 
@@ -122,6 +126,10 @@ impl Shape {
             ShapeGeometry::Curves(c) => {
                 let (p, n, uv, _, _) = c.surface(prim, bary.0, ray_o + ray_d * t);
                 (p, n, n, uv, Vec2::new(bary.0, 0.0))
+            }
+            ShapeGeometry::SdfGrid(g) => {
+                let (p, n, sh_n, uv) = g.surface(ray_o + ray_d * t, ray_d);
+                (p, n, sh_n, uv, Vec2::ZERO)
             }
         };
         let (frame, dp_du, dp_dv) = match self.tangent_frame.then(|| self.dp_duv(prim, p, (bary.x, bary.y))).flatten() {
@@ -214,6 +222,7 @@ impl Shape {
                 let (_, _, _, dp_du, dp_dv) = c.surface(prim, bary.0, p);
                 Some((dp_du, dp_dv))
             }
+            ShapeGeometry::SdfGrid(_) => None,
         }
     }
 
@@ -226,7 +235,7 @@ impl Shape {
             ShapeGeometry::Disk(d) => Some(d.sample_position(u)),
             ShapeGeometry::Cylinder(c) => Some(c.sample_position(u)),
             // Never an emitter (the loader refuses one).
-            ShapeGeometry::Curves(_) => None,
+            ShapeGeometry::Curves(_) | ShapeGeometry::SdfGrid(_) => None,
         }
     }
 
@@ -241,7 +250,7 @@ impl Shape {
             ShapeGeometry::Mesh(m) => m.sample_position(u)?,
             ShapeGeometry::Disk(d) => d.sample_position(u),
             ShapeGeometry::Cylinder(c) => c.sample_position(u),
-            ShapeGeometry::Curves(_) => return None,
+            ShapeGeometry::Curves(_) | ShapeGeometry::SdfGrid(_) => return None,
         };
         ps.towards(p)
     }

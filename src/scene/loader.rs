@@ -15,6 +15,7 @@ use crate::geometry::curve::{CurveKind, Curves};
 use crate::geometry::cylinder::Cylinder;
 use crate::geometry::disk::Disk;
 use crate::geometry::mesh::Mesh;
+use crate::geometry::sdfgrid::{SdfGrid, SdfNormals};
 use crate::geometry::mesh_io;
 use crate::geometry::serialized;
 use crate::geometry::sphere::Sphere;
@@ -34,7 +35,9 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-pub const SHAPES: [&str; 12] = ["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "linearcurve", "bsplinecurve", "shapegroup", "instance"];
+pub const SHAPES: [&str; 13] = [
+    "rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "linearcurve", "bsplinecurve", "sdfgrid", "shapegroup", "instance",
+];
 pub const BSDFS: [&str; 20] = [
     "birefringent", "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer", "pplastic",
     "principled", "principledthin", "retarder",
@@ -268,10 +271,6 @@ fn sensor_fov(props: &Props, aspect: f32) -> Result<f32> {
 }
 
 fn unknown_plugin(node: &Node, choices: &[&str]) -> SceneError {
-    if let Some(feature) = super::unsupported::plugin(node.kind, &node.plugin) {
-        return SceneError::at(&node.loc, format!("the {} plugin \"{}\" ({feature}) is not supported yet", node.kind.tag(), node.plugin))
-            .with_help(format!("supported {} plugins: {}", node.kind.tag(), choices.join(", ")));
-    }
     if let Some(instead) = super::unsupported::removed(node.kind, &node.plugin) {
         return SceneError::at(&node.loc, format!("unknown {} plugin \"{}\" (a Mitsuba 0.6 plugin that Mitsuba 3 removed)", node.kind.tag(), node.plugin))
             .with_help(format!("{instead}; valid choices are: {}", choices.join(", ")));
@@ -551,6 +550,15 @@ impl Loader {
                 let curves = Curves::load(&path, &to_world, kind).map_err(|e| with_search_help(SceneError::at(file_loc, e), node, filename))?;
                 ShapeGeometry::Curves(curves)
             }
+            "sdfgrid" => {
+                let normals = props.choice("normals", "smooth", &["smooth", "analytic"])?;
+                let normals = SdfNormals::parse(normals).unwrap_or(SdfNormals::Smooth);
+                let filename = props.string_req("filename")?;
+                let path = self.input_file(node, filename);
+                let file_loc = node.props.iter().find(|p| p.name == "filename").map_or(&node.loc, |p| &p.loc);
+                let grid = SdfGrid::load(&path, &to_world, normals).map_err(|e| with_search_help(SceneError::at(file_loc, e), node, filename))?;
+                ShapeGeometry::SdfGrid(grid)
+            }
             _ => return Err(unknown_plugin(node, &SHAPES)),
         };
         let shape_index = self.shapes.len() as u32;
@@ -577,8 +585,8 @@ impl Loader {
         if emitter_nodes.len() > 1 {
             return Err(SceneError::at(&emitter_nodes[1].loc, "a shape takes at most one emitter"));
         }
-        if let (ShapeGeometry::Curves(_), Some(e)) = (&geometry, emitter_nodes.first()) {
-            return Err(SceneError::at(&e.loc, format!("a {} cannot emit: curves cannot be sampled by area (nor can Mitsuba's)", node.plugin))
+        if let (ShapeGeometry::Curves(_) | ShapeGeometry::SdfGrid(_), Some(e)) = (&geometry, emitter_nodes.first()) {
+            return Err(SceneError::at(&e.loc, format!("a {} cannot emit: its surface cannot be sampled by area (nor can Mitsuba's)", node.plugin))
                 .with_help("make the light a mesh, sphere, disk, rectangle or cylinder"));
         }
         if let (true, Some(e)) = (self.in_group, emitter_nodes.first()) {
@@ -616,7 +624,8 @@ impl Loader {
         }
         props.finish()?;
         let shape = Shape { geometry, bsdf, emitter, tangent_frame, pass_through, interior, exterior };
-        if shape.area() <= 0.0 || !shape.area().is_finite() {
+        let has_area = !matches!(shape.geometry, ShapeGeometry::SdfGrid(_));
+        if has_area && (shape.area() <= 0.0 || !shape.area().is_finite()) {
             return Err(SceneError::at(&node.loc, format!("this {} has zero or non-finite surface area", node.plugin)));
         }
         if !self.in_group {

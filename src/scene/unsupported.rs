@@ -4,7 +4,6 @@
 //!
 //! | what | Mitsuba names |
 //! |---|---|
-//! | signed distance fields | `sdfgrid` shape |
 //! | id aliases | `<alias id="…" as="…"/>` |
 //!
 //! [`removed`] names Mitsuba 0.6 plugins that Mitsuba 3 no longer has, so
@@ -16,14 +15,6 @@ use super::xml::Kind;
 pub fn element(tag: &str) -> Option<&'static str> {
     match tag {
         "alias" => Some("aliases of object ids"),
-        _ => None,
-    }
-}
-
-/// The feature an unsupported plugin of `kind` belongs to.
-pub fn plugin(kind: Kind, name: &str) -> Option<&'static str> {
-    match (kind, name) {
-        (Kind::Shape, "sdfgrid") => Some("signed distance fields"),
         _ => None,
     }
 }
