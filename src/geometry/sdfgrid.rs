@@ -50,6 +50,7 @@
 //! Newton steps, all in double precision.
 
 use crate::math::Transform;
+use crate::medium::volume::VolFile;
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
 use std::path::Path;
 use std::sync::Arc;
@@ -624,49 +625,21 @@ fn trilerp(s: &[f64; 8], q: DVec3) -> f64 {
     lo * (1.0 - q.z) + hi * q.z
 }
 
-/// The samples and resolution of a `.vol` file with one float32 channel.
-///
-/// (`crate::medium::volume::Grid::parse` reads the same format but refuses
-/// negative values, which every SDF has.)
+/// The samples and resolution of a `.vol` file with one float32 channel
+/// (negative values allowed, unlike a medium's grid: every SDF has them).
 fn parse_vol(bytes: &[u8]) -> Result<(Vec<f32>, [usize; 3]), String> {
-    if bytes.len() < 48 || &bytes[..3] != b"VOL" {
-        return Err("not a Mitsuba volume grid (it must start with \"VOL\" and a 48-byte header)".into());
+    let vol = VolFile::parse(bytes)?;
+    if vol.channels != 1 {
+        return Err(format!("{} channels, but an SDF grid has exactly 1", vol.channels));
     }
-    if bytes[3] != 3 {
-        return Err(format!("format version {} (only version 3 is read)", bytes[3]));
-    }
-    let int = |at: usize| i32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
-    if int(4) != 1 {
-        return Err(format!("encoding {} (only 1, float32, is read)", int(4)));
-    }
-    let dims = [int(8), int(12), int(16)];
-    if dims.iter().any(|&d| d <= 0) {
-        return Err(format!("resolution {}×{}×{} is not positive", dims[0], dims[1], dims[2]));
-    }
-    let channels = int(20);
-    if channels != 1 {
-        return Err(format!("{channels} channels, but an SDF grid has exactly 1"));
-    }
-    let count = dims.iter().try_fold(1usize, |acc, &d| acc.checked_mul(d as usize));
-    let expected = count.and_then(|c| c.checked_mul(4)).and_then(|c| c.checked_add(48));
-    if expected != Some(bytes.len()) {
-        return Err(format!(
-            "{} bytes, but a {}×{}×{} grid of float32 takes {}",
-            bytes.len(),
-            dims[0],
-            dims[1],
-            dims[2],
-            expected.map_or("more than fits in memory".to_string(), |e| e.to_string())
-        ));
-    }
-    let values = bytes[48..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
-    Ok((values, [dims[0] as usize, dims[1] as usize, dims[2] as usize]))
+    Ok((vol.data, vol.res))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::math::Pcg32;
+    use crate::medium::volume::vol_bytes;
     use glam::Mat4;
 
     fn random_unit(rng: &mut Pcg32) -> Vec3 {
@@ -996,20 +969,6 @@ mod tests {
                 }
             }
         }
-    }
-
-    fn vol_bytes(res: [i32; 3], channels: i32, values: &[f32]) -> Vec<u8> {
-        let mut b = b"VOL\x03".to_vec();
-        for v in [1, res[0], res[1], res[2], channels] {
-            b.extend(v.to_le_bytes());
-        }
-        for v in [0.0f32, 0.0, 0.0, 1.0, 1.0, 1.0] {
-            b.extend(v.to_le_bytes());
-        }
-        for v in values {
-            b.extend(v.to_le_bytes());
-        }
-        b
     }
 
     #[test]

@@ -107,14 +107,20 @@ fn placed_bounds(to_world: &Transform) -> (Vec3, Vec3) {
     (lo, hi)
 }
 
-impl Grid {
-    /// Reads a `.vol` file; an error message says what is wrong with it.
-    pub fn read(path: &Path, nearest: bool, wrap: WrapMode) -> Result<Grid, String> {
-        let bytes = std::fs::read(path).map_err(|e| format!("cannot read the volume file \"{}\": {e}", path.display()))?;
-        Grid::parse(&bytes, nearest, wrap).map_err(|e| format!("volume file \"{}\": {e}", path.display()))
-    }
+/// The contents of a `.vol` file (format in the module's documentation),
+/// read by volume grids and by the `sdfgrid` shape.
+pub struct VolFile {
+    pub res: [usize; 3],
+    pub channels: usize,
+    /// x fastest, channels interleaved.
+    pub data: Vec<f32>,
+    /// The bounds the file gives (lo, hi).
+    pub bounds: (Vec3, Vec3),
+}
 
-    pub fn parse(bytes: &[u8], nearest: bool, wrap: WrapMode) -> Result<Grid, String> {
+impl VolFile {
+    /// Parses the bytes of a `.vol` file; an error says what is wrong.
+    pub fn parse(bytes: &[u8]) -> Result<VolFile, String> {
         if bytes.len() < 48 || &bytes[..3] != b"VOL" {
             return Err("not a Mitsuba volume grid (it must start with \"VOL\" and a 48-byte header)".into());
         }
@@ -131,8 +137,8 @@ impl Grid {
         if dims.iter().any(|&d| d <= 0) {
             return Err(format!("resolution {}×{}×{} is not positive", dims[0], dims[1], dims[2]));
         }
-        if channels != 1 && channels != 3 {
-            return Err(format!("{channels} channels (1 or 3 are read)"));
+        if channels <= 0 {
+            return Err(format!("{channels} channels"));
         }
         let count = dims.iter().try_fold(channels as usize, |acc, &d| acc.checked_mul(d as usize));
         let expected = count.and_then(|c| c.checked_mul(4)).and_then(|c| c.checked_add(48));
@@ -146,18 +152,47 @@ impl Grid {
                 expected.map_or("more than fits in memory".to_string(), |e| e.to_string())
             ));
         }
-        let data: Vec<f32> = bytes[48..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
-        if let Some(v) = data.iter().find(|v| !v.is_finite() || **v < 0.0) {
-            return Err(format!("a value is {v}; volume values must be finite and not negative"));
-        }
-        Ok(Grid {
+        Ok(VolFile {
             res: [dims[0] as usize, dims[1] as usize, dims[2] as usize],
             channels: channels as usize,
-            data,
-            file_bounds: (Vec3::new(float(24), float(28), float(32)), Vec3::new(float(36), float(40), float(44))),
-            nearest,
-            wrap,
+            data: bytes[48..].chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect(),
+            bounds: (Vec3::new(float(24), float(28), float(32)), Vec3::new(float(36), float(40), float(44))),
         })
+    }
+}
+
+/// A `.vol` file's bytes (bounds the unit cube), for tests.
+#[cfg(test)]
+pub fn vol_bytes(res: [i32; 3], channels: i32, values: &[f32]) -> Vec<u8> {
+    let mut b = b"VOL\x03".to_vec();
+    for v in [1, res[0], res[1], res[2], channels] {
+        b.extend(v.to_le_bytes());
+    }
+    for v in [0.0f32, 0.0, 0.0, 1.0, 1.0, 1.0] {
+        b.extend(v.to_le_bytes());
+    }
+    for v in values {
+        b.extend(v.to_le_bytes());
+    }
+    b
+}
+
+impl Grid {
+    /// Reads a `.vol` file; an error message says what is wrong with it.
+    pub fn read(path: &Path, nearest: bool, wrap: WrapMode) -> Result<Grid, String> {
+        let bytes = std::fs::read(path).map_err(|e| format!("cannot read the volume file \"{}\": {e}", path.display()))?;
+        Grid::parse(&bytes, nearest, wrap).map_err(|e| format!("volume file \"{}\": {e}", path.display()))
+    }
+
+    pub fn parse(bytes: &[u8], nearest: bool, wrap: WrapMode) -> Result<Grid, String> {
+        let vol = VolFile::parse(bytes)?;
+        if vol.channels != 1 && vol.channels != 3 {
+            return Err(format!("{} channels (1 or 3 are read)", vol.channels));
+        }
+        if let Some(v) = vol.data.iter().find(|v| !v.is_finite() || **v < 0.0) {
+            return Err(format!("a value is {v}; volume values must be finite and not negative"));
+        }
+        Ok(Grid { res: vol.res, channels: vol.channels, data: vol.data, file_bounds: vol.bounds, nearest, wrap })
     }
 
     /// The transform that maps the unit cube to the bounds the file gives.
@@ -230,20 +265,6 @@ impl Grid {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn vol_bytes(res: [i32; 3], channels: i32, values: &[f32]) -> Vec<u8> {
-        let mut b = b"VOL\x03".to_vec();
-        for v in [1, res[0], res[1], res[2], channels] {
-            b.extend(v.to_le_bytes());
-        }
-        for v in [0.0f32, 0.0, 0.0, 1.0, 1.0, 1.0] {
-            b.extend(v.to_le_bytes());
-        }
-        for v in values {
-            b.extend(v.to_le_bytes());
-        }
-        b
-    }
 
     #[test]
     fn trilinear_lookup_hits_cell_centres_and_interpolates_between() {
