@@ -198,7 +198,8 @@ impl Shape {
     /// ∂p/∂u and ∂p/∂v at `p` on primitive `prim`, as Mitsuba 3.9 computes
     /// them (magnitudes included, which bump mapping needs): a mesh's
     /// texture coordinates; the sphere's u = φ/2π, v = θ/π; the disk's
-    /// u = r, v = φ/2π.
+    /// u = r, v = φ/2π; a curve's angle around and length along (from its
+    /// parameter, carried in `bary`). None for an SDF grid (no parameterisation).
     fn dp_duv(&self, prim: u32, p: Vec3, bary: (f32, f32)) -> Option<(Vec3, Vec3)> {
         use std::f32::consts::PI;
         match &self.geometry {
