@@ -95,7 +95,6 @@ pub struct SdfGrid {
     /// Voxel-space gradient → world-space normal (the transpose of
     /// `to_voxel`'s linear part: normals transform by the inverse transpose).
     normal_to_world: DMat3,
-    bounds: (Vec3, Vec3),
 }
 
 impl std::fmt::Debug for SdfGrid {
@@ -170,14 +169,6 @@ impl SdfGrid {
             return Err("no voxel holds any surface (the values never change sign)".into());
         }
 
-        // As Mitsuba's `bbox()`: the box of the placed unit cube.
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for i in 0..8 {
-            let p = to_world.point(Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, (i >> 2) as f32));
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
         Ok(SdfGrid {
             to_world: *to_world,
             normals,
@@ -188,7 +179,6 @@ impl SdfGrid {
             occ_hi,
             to_voxel,
             normal_to_world,
-            bounds: (lo, hi),
         })
     }
 
@@ -199,7 +189,8 @@ impl SdfGrid {
 
     /// World-space bounding box (lo, hi): the placed unit cube.
     pub fn bounds(&self) -> (Vec3, Vec3) {
-        self.bounds
+        // As Mitsuba's `bbox()`.
+        self.to_world.unit_cube_bounds()
     }
 
     /// Nearest t in (0, tmax) where the world-space ray o + t·d meets the

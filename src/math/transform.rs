@@ -69,6 +69,19 @@ impl Transform {
         Transform { matrix: self.matrix * first.matrix, inverse: first.inverse * self.inverse }
     }
 
+    /// World-space axis-aligned bounds (lo, hi) of the unit cube [0, 1]³
+    /// placed by this transform (a volume's or an SDF grid's box).
+    pub fn unit_cube_bounds(&self) -> (Vec3, Vec3) {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for i in 0..8 {
+            let p = self.point(Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, (i >> 2) as f32));
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        (lo, hi)
+    }
+
     #[inline]
     pub fn point(&self, p: Vec3) -> Vec3 {
         self.matrix.transform_point3(p)

@@ -59,12 +59,12 @@ pub struct Volume {
 impl Volume {
     pub fn constant(value: Rgb, to_world: Transform) -> Volume {
         let max = value.0[0].max(value.0[1]).max(value.0[2]);
-        Volume { bounds: placed_bounds(&to_world), data: VolumeData::Constant(value), to_world, max }
+        Volume { bounds: to_world.unit_cube_bounds(), data: VolumeData::Constant(value), to_world, max }
     }
 
     pub fn grid(grid: Grid, to_world: Transform, max_value: Option<f32>) -> Volume {
         let max = max_value.unwrap_or_else(|| grid.data.iter().copied().fold(0.0f32, f32::max));
-        Volume { bounds: placed_bounds(&to_world), data: VolumeData::Grid(Arc::new(grid)), to_world, max }
+        Volume { bounds: to_world.unit_cube_bounds(), data: VolumeData::Grid(Arc::new(grid)), to_world, max }
     }
 
     pub fn is_constant(&self) -> bool {
@@ -93,18 +93,6 @@ impl Volume {
         let t1 = a.max(b).min_element();
         (t0 <= t1).then_some((t0, t1))
     }
-}
-
-fn placed_bounds(to_world: &Transform) -> (Vec3, Vec3) {
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
-    for i in 0..8 {
-        let c = Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32);
-        let p = to_world.point(c);
-        lo = lo.min(p);
-        hi = hi.max(p);
-    }
-    (lo, hi)
 }
 
 /// The contents of a `.vol` file (format in the module's documentation),
