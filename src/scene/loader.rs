@@ -271,6 +271,10 @@ fn sensor_fov(props: &Props, aspect: f32) -> Result<f32> {
 }
 
 fn unknown_plugin(node: &Node, choices: &[&str]) -> SceneError {
+    if let Some(what) = super::unsupported::mitsuba3_plugin(node.kind, &node.plugin) {
+        return SceneError::at(&node.loc, format!("Mitsuba 3's {} plugin \"{}\" ({what}) is not supported yet", node.kind.tag(), node.plugin))
+            .with_choices(choices);
+    }
     if let Some(instead) = super::unsupported::removed(node.kind, &node.plugin) {
         return SceneError::at(&node.loc, format!("unknown {} plugin \"{}\" (a Mitsuba 0.6 plugin that Mitsuba 3 removed)", node.kind.tag(), node.plugin))
             .with_help(format!("{instead}; valid choices are: {}", choices.join(", ")));
@@ -964,8 +968,10 @@ impl Loader {
     /// (or referenced) texture, and where it was given; `None` if absent.
     fn texture_input_at(&self, props: &Props, name: &str) -> Result<Option<(Texture, super::Location)>> {
         let at_prop = || props.node.props.iter().find(|p| p.name == name).map_or(&props.node.loc, |p| &p.loc).clone();
-        if let Some(listed) = props.listed_opt(name) {
-            return Ok(Some((Texture::Spectral { rgb: listed.to_rgb(false), spectrum: Arc::new(listed) }, at_prop())));
+        match props.spectrum_opt(name) {
+            Some((rgb, Some(listed))) => return Ok(Some((Texture::Spectral { rgb, spectrum: Arc::new(listed) }, at_prop()))),
+            Some((rgb, None)) => return Ok(Some((Texture::constant(rgb), at_prop()))),
+            None => {}
         }
         if let Some(c) = props.color_opt(name)? {
             return Ok(Some((Texture::constant(c), at_prop())));

@@ -227,23 +227,34 @@ impl<'a> Props<'a> {
             Some((_, Value::Rgb(c))) => Ok(Some(Rgb(*c))),
             Some((_, Value::Spectrum(s))) => Ok(Some(Rgb([*s; 3]))),
             Some((_, Value::SpectrumList(v))) => Ok(Some(spectrum_to_linear_srgb(v, false))),
+            Some((_, Value::SpectrumPlugin(p))) => Ok(Some(p.reflectance().0)),
             Some((_, Value::Float(f))) => Ok(Some(Rgb([*f as f32; 3]))),
             Some((_, Value::Integer(v))) => Ok(Some(Rgb([*v as f32; 3]))),
             Some((i, _)) => Err(self.type_error(i, "rgb, spectrum or float")),
         }
     }
 
-    /// A `<spectrum>` of `wavelength:value` pairs, if that is what `name` is
-    /// (other types are left for the other getters).
+    /// A `<spectrum>` of `wavelength:value` pairs or a spectrum plugin, if
+    /// that is what `name` is (other types are left for the other getters).
     pub fn listed_opt(&self, name: &str) -> Option<ListedSpectrum> {
+        self.spectrum_opt(name).and_then(|(_, spectrum)| spectrum)
+    }
+
+    /// A `<spectrum>` of pairs or a spectrum plugin read as a reflectance:
+    /// its RGB-mode colour and the spectrum spectral mode evaluates (`None`:
+    /// that colour's uplift). `None` for other types.
+    pub fn spectrum_opt(&self, name: &str) -> Option<(Rgb, Option<ListedSpectrum>)> {
         let i = self.node.props.iter().position(|p| p.name == name)?;
-        match &self.node.props[i].value {
+        let out = match &self.node.props[i].value {
             Value::SpectrumList(v) => {
-                self.used[i].set(true);
-                ListedSpectrum::new(v.clone())
+                let listed = ListedSpectrum::new(v.clone())?;
+                (listed.to_rgb(false), Some(listed))
             }
-            _ => None,
-        }
+            Value::SpectrumPlugin(p) => p.reflectance(),
+            _ => return None,
+        };
+        self.used[i].set(true);
+        Some(out)
     }
 
     /// Emission (radiance, intensity, irradiance): a colour, or a spectrum
@@ -252,7 +263,13 @@ impl<'a> Props<'a> {
     /// arithmetic along a path would overflow single precision (above
     /// [`MAX_EMISSION`]), which would otherwise give a black image.
     pub fn emission_opt(&self, name: &str) -> Result<Option<Emission>> {
-        let emission = if let Some(listed) = self.listed_opt(name) {
+        let plugin = match self.find(name) {
+            Some((_, Value::SpectrumPlugin(p))) => Some(p.emission()),
+            _ => None,
+        };
+        let emission = if let Some(e) = plugin {
+            e
+        } else if let Some(listed) = self.listed_opt(name) {
             Emission::listed(listed)
         } else if let Some((_, Value::Spectrum(v))) = self.find(name) {
             Emission::flat(EQUAL_ENERGY_WHITE * *v, *v)

@@ -6,6 +6,9 @@
 //! |---|---|
 //! | id aliases | `<alias id="…" as="…"/>` |
 //!
+//! [`mitsuba3_plugin`] names the plugins of Mitsuba 3.9.1 that Snell does
+//! not render yet, so that their error says so instead of suggesting a typo.
+//!
 //! [`removed`] names Mitsuba 0.6 plugins that Mitsuba 3 no longer has, so
 //! that an old scene's "unknown plugin" error says what to use instead.
 
@@ -15,6 +18,27 @@ use super::xml::Kind;
 pub fn element(tag: &str) -> Option<&'static str> {
     match tag {
         "alias" => Some("aliases of object ids"),
+        _ => None,
+    }
+}
+
+/// What a Mitsuba 3.9.1 plugin that Snell does not render yet is.
+pub fn mitsuba3_plugin(kind: Kind, name: &str) -> Option<&'static str> {
+    match (kind, name) {
+        (Kind::Emitter, "sunsky" | "timed_sunsky") => Some("Hosek–Wilkie sky and sun"),
+        (Kind::Emitter, "directionalarea") => Some("an area light emitting in one direction"),
+        (Kind::Bsdf, "hair") => Some("a hair fibre BSDF"),
+        (Kind::Bsdf, "measured" | "measured_polarized") => Some("a measured (tabulated) BSDF"),
+        (Kind::Film, "specfilm") => Some("a film of spectral sensitivities"),
+        (Kind::Integrator, "depth") => Some("a depth integrator; the aov integrator's depth:… channel gives the same"),
+        (Kind::Integrator, "prb" | "prb_basic" | "direct_projective" | "prb_projective") => {
+            Some("a differentiable integrator; path renders the same image")
+        }
+        (Kind::Sensor, "radiancemeter" | "irradiancemeter" | "distant" | "batch") => Some("a measuring or multi-view sensor"),
+        (Kind::Shape, "ellipsoids" | "ellipsoidsmesh") => Some("ellipsoid (Gaussian splat) primitives"),
+        (Kind::Shape, "merge") => Some("a merge of meshes"),
+        (Kind::Phase, "rayleigh" | "sggx" | "tabphase" | "blendphase") => Some("a phase function"),
+        (Kind::Texture, "volume") => Some("a 3-D texture read from a volume"),
         _ => None,
     }
 }
@@ -29,7 +53,9 @@ pub fn removed(kind: Kind, name: &str) -> Option<&'static str> {
             Some("Mitsuba 3 has no such BSDF; diffuse, plastic, conductor or dielectric are the closest")
         }
         (Kind::Texture, "scale" | "vertexcolors" | "wireframe" | "gridtexture" | "curvature") => Some("Mitsuba 3 has no such texture"),
-        (Kind::Emitter, "sunsky" | "sun" | "sky") => Some("Mitsuba 3 has no sky model; an environment map image is the closest"),
+        (Kind::Emitter, "sun" | "sky") => {
+            Some("Mitsuba 3 replaced sun and sky by sunsky (Hosek–Wilkie), which Snell does not render yet; an environment map image of a sky is the closest")
+        }
         _ => None,
     }
 }

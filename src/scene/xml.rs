@@ -18,6 +18,8 @@
 use super::error::{Location, Result, SceneError, SourceFile};
 use super::search::{SearchPaths, folder_of};
 use crate::math::Transform;
+use crate::spectrum::Rgb;
+use crate::spectrum::plugins::SpectrumPlugin;
 use glam::{Mat4, Vec3, Vec4};
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -92,6 +94,8 @@ pub enum Value {
     Spectrum(f32),
     /// A `<spectrum>` given as `wavelength:value` pairs (nm), increasing.
     SpectrumList(Vec<(f32, f32)>),
+    /// A `<spectrum type="…">`: one of Mitsuba's spectrum plugins.
+    SpectrumPlugin(Arc<SpectrumPlugin>),
     Point(Vec3),
     Vector(Vec3),
     Transform(Transform),
@@ -105,7 +109,7 @@ impl Value {
             Value::Boolean(_) => "boolean",
             Value::String(_) => "string",
             Value::Rgb(_) => "rgb",
-            Value::Spectrum(_) | Value::SpectrumList(_) => "spectrum",
+            Value::Spectrum(_) | Value::SpectrumList(_) | Value::SpectrumPlugin(_) => "spectrum",
             Value::Point(_) => "point",
             Value::Vector(_) => "vector",
             Value::Transform(_) => "transform",
@@ -611,6 +615,11 @@ impl Parser {
                 let c = if v.len() == 1 { [v[0] as f32; 3] } else { [v[0] as f32, v[1] as f32, v[2] as f32] };
                 Value::Rgb(c)
             }
+            "spectrum" if x.attribute("type").is_some() => {
+                self.check_attrs(file, x, &["name", "type"])?;
+                let plugin = self.req_attr(file, x, "type")?;
+                Value::SpectrumPlugin(Arc::new(self.parse_spectrum_plugin(file, x, &plugin, parent)?))
+            }
             "spectrum" => {
                 self.check_attrs(file, x, &["name", "value"])?;
                 let s = self.req_attr(file, x, "value")?;
@@ -643,6 +652,141 @@ impl Parser {
             return Err(SceneError::at(&loc, format!("property \"{name}\" is not finite")));
         }
         Ok(Prop { name, value, loc })
+    }
+
+    /// `<spectrum type="…">`: one of Mitsuba's spectrum plugins, its
+    /// parameters nested as properties (see `spectrum/plugins.rs`).
+    fn parse_spectrum_plugin(&self, file: &Arc<SourceFile>, x: &XNode, plugin: &str, parent: &Node) -> Result<SpectrumPlugin> {
+        const PLUGINS: [&str; 6] = ["blackbody", "d65", "irregular", "regular", "srgb", "uniform"];
+        let loc = loc_of(file, x);
+        let params: &[&str] = match plugin {
+            "uniform" => &["value", "wavelength_min", "wavelength_max"],
+            "regular" => &["wavelength_min", "wavelength_max", "values"],
+            "irregular" => &["wavelengths", "values"],
+            "blackbody" => &["temperature", "wavelength_min", "wavelength_max"],
+            "d65" => &["color", "scale"],
+            "srgb" => &["color", "unbounded"],
+            _ => {
+                return Err(SceneError::at(&attr_loc(file, x, "type"), format!("unknown spectrum plugin \"{plugin}\"")).with_choices(&PLUGINS));
+            }
+        };
+        let mut props: Vec<Prop> = vec![];
+        for c in x.children() {
+            if c.is_comment() || c.is_text() && c.text().unwrap_or("").trim().is_empty() {
+                continue;
+            }
+            let at = loc_of(file, &c);
+            if !c.is_element() {
+                return Err(SceneError::at(&at, "unexpected text inside <spectrum>"));
+            }
+            let tag = c.tag_name().name();
+            if !matches!(tag, "float" | "integer" | "string" | "rgb" | "boolean") {
+                return Err(SceneError::at(&at, format!("<{tag}> cannot be a parameter of <spectrum type=\"{plugin}\">"))
+                    .with_choices(&["float", "integer", "string", "rgb", "boolean"]));
+            }
+            let prop = self.parse_property(file, &c, parent)?;
+            if !params.contains(&prop.name.as_str()) {
+                return Err(SceneError::at(&prop.loc, format!("unknown parameter \"{}\" of <spectrum type=\"{plugin}\">", prop.name))
+                    .with_choices(params));
+            }
+            if let Some(prev) = props.iter().find(|p| p.name == prop.name) {
+                return Err(SceneError::at(&prop.loc, format!("parameter \"{}\" is given twice (first at line {})", prop.name, prev.loc.line)));
+            }
+            props.push(prop);
+        }
+        let find = |name: &str| props.iter().find(|p| p.name == name);
+        let missing = |name: &str| SceneError::at(&loc, format!("<spectrum type=\"{plugin}\"> needs the parameter \"{name}\""));
+        let wrong = |p: &Prop, what: &str| {
+            SceneError::at(&p.loc, format!("parameter \"{}\" of <spectrum type=\"{plugin}\"> must be {what}, not {}", p.name, p.value.type_name()))
+        };
+        let float = |name: &str, default: Option<f32>| -> Result<f32> {
+            match find(name) {
+                Some(Prop { value: Value::Float(v), .. }) => Ok(*v as f32),
+                Some(Prop { value: Value::Integer(v), .. }) => Ok(*v as f32),
+                Some(p) => Err(wrong(p, "a float")),
+                None => default.ok_or_else(|| missing(name)),
+            }
+        };
+        let list = |name: &str| -> Result<Vec<f32>> {
+            match find(name) {
+                Some(p @ Prop { value: Value::String(s), .. }) => parse_list(s)
+                    .map(|v| v.into_iter().map(|x| x as f32).collect::<Vec<f32>>())
+                    .filter(|v| v.iter().all(|x| x.is_finite()))
+                    .ok_or_else(|| SceneError::at(&p.loc, format!("\"{s}\" is not a list of numbers (in \"{name}\")"))),
+                Some(p) => Err(wrong(p, "a string of numbers")),
+                None => Err(missing(name)),
+            }
+        };
+        let color = |name: &str| -> Result<Option<Rgb>> {
+            match find(name) {
+                Some(Prop { value: Value::Rgb(c), .. }) => Ok(Some(Rgb(*c))),
+                Some(Prop { value: Value::Float(v), .. }) => Ok(Some(Rgb([*v as f32; 3]))),
+                Some(p) => Err(wrong(p, "an rgb colour")),
+                None => Ok(None),
+            }
+        };
+        let range = |name_min: &str, name_max: &str| -> Result<(f32, f32)> {
+            let (lo, hi) = (float(name_min, Some(360.0))?, float(name_max, Some(830.0))?);
+            if !(lo > 0.0 && lo < hi) {
+                let at = find(name_min).or(find(name_max)).map_or(&loc, |p| &p.loc);
+                return Err(SceneError::at(at, format!("<spectrum type=\"{plugin}\">: wavelength range [{lo}, {hi}] nm is empty or not positive")));
+            }
+            Ok((lo, hi))
+        };
+        let bad = |what: String| SceneError::at(&loc, what);
+        Ok(match plugin {
+            "uniform" => {
+                // Mitsuba reads the range; it bounds only its wavelength sampling.
+                range("wavelength_min", "wavelength_max")?;
+                SpectrumPlugin::Uniform { value: float("value", None)? }
+            }
+            "regular" => {
+                let (lo, hi) = (float("wavelength_min", None)?, float("wavelength_max", None)?);
+                let values = list("values")?;
+                SpectrumPlugin::regular(lo, hi, &values).ok_or_else(|| {
+                    bad(format!("<spectrum type=\"regular\"> needs 0 < wavelength_min < wavelength_max (here {lo}, {hi}) and two or more values (here {})", values.len()))
+                })?
+            }
+            "irregular" => {
+                let (wavelengths, values) = (list("wavelengths")?, list("values")?);
+                SpectrumPlugin::irregular(&wavelengths, &values).ok_or_else(|| {
+                    bad(format!(
+                        "<spectrum type=\"irregular\"> needs as many values as wavelengths (here {} and {}), at least two, wavelengths positive and increasing",
+                        values.len(),
+                        wavelengths.len()
+                    ))
+                })?
+            }
+            "blackbody" => {
+                let temperature = float("temperature", None)?;
+                let (lo, hi) = range("wavelength_min", "wavelength_max")?;
+                SpectrumPlugin::blackbody(temperature, lo, hi)
+                    .ok_or_else(|| bad(format!("<spectrum type=\"blackbody\">: temperature must be positive (kelvin), not {temperature}")))?
+            }
+            "d65" => {
+                let scale = float("scale", Some(1.0))?;
+                let color = color("color")?.unwrap_or(Rgb::WHITE);
+                if scale < 0.0 || color.0.iter().any(|&c| c < 0.0) {
+                    return Err(bad("<spectrum type=\"d65\">: colour and scale must not be negative".to_string()));
+                }
+                SpectrumPlugin::D65 { color, scale }
+            }
+            _ => {
+                let color = color("color")?.ok_or_else(|| missing("color"))?;
+                let unbounded = match find("unbounded") {
+                    Some(Prop { value: Value::Boolean(b), .. }) => *b,
+                    Some(p) => return Err(wrong(p, "a boolean")),
+                    None => false,
+                };
+                let (lo, hi) = if unbounded { (0.0, f32::INFINITY) } else { (0.0, 1.0) };
+                if color.0.iter().any(|&c| !(c >= lo && c <= hi)) {
+                    let at = find("color").map_or(&loc, |p| &p.loc);
+                    return Err(SceneError::at(at, format!("<spectrum type=\"srgb\">: colour {:?} must lie in [0, 1]", color.0))
+                        .with_help("add <boolean name=\"unbounded\" value=\"true\"/> for a colour above one"));
+                }
+                SpectrumPlugin::Srgb { color, unbounded }
+            }
+        })
     }
 
     /// A 3-vector from `value="x, y, z"` or from x/y/z attributes (missing ones

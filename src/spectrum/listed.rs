@@ -72,10 +72,16 @@ impl Emission {
         Emission { rgb: spectrum.to_rgb(true), spectrum: Some(Arc::new(spectrum)), cache: UpliftCache::default() }
     }
 
+    /// Emission whose RGB-mode colour is `rgb` and whose spectral-mode
+    /// spectrum is `spectrum` (given separately where the scene fixes both).
+    pub fn with_spectrum(rgb: Rgb, spectrum: ListedSpectrum) -> Emission {
+        Emission { rgb, spectrum: Some(Arc::new(spectrum)), cache: UpliftCache::default() }
+    }
+
     /// Flat emission `value` at every wavelength (a constant `<spectrum>`),
     /// whose RGB colour is `rgb`.
     pub fn flat(rgb: Rgb, value: f32) -> Emission {
-        Emission { rgb, spectrum: Some(Arc::new(ListedSpectrum::constant(value))), cache: UpliftCache::default() }
+        Emission::with_spectrum(rgb, ListedSpectrum::constant(value))
     }
 
     pub fn is_zero(&self) -> bool {

@@ -11,6 +11,7 @@ pub mod cie;
 mod cie_data;
 pub mod listed;
 pub mod mueller;
+pub mod plugins;
 pub mod polarized;
 mod rgb;
 pub mod sampled;
