@@ -267,6 +267,38 @@ fn unsupported_features_are_named() {
     assert_unsupported("    <alias id=\"a\" as=\"b\"/>\n", 7, 5, &["<alias>", "aliases"]);
 }
 
+/// Mitsuba's differentiable integrators render their primal image as the
+/// path tracers do, with the default depth of Mitsuba's ADIntegrator base
+/// (6) where `path` and `volpath` have none.
+#[test]
+fn differentiable_integrators_read_as_path_tracers_with_depth_six() {
+    use snell::integrator::Integrator;
+    let cornell = std::fs::read_to_string(repo("scenes/cornell-box.xml")).expect("cornell-box.xml");
+    let block = "<integrator type=\"path\">\n        <integer name=\"max_depth\" value=\"$max_depth\"/>\n    </integrator>";
+    assert!(cornell.contains(block), "the Cornell box's integrator block changed");
+    let load = |integrator: &str| {
+        let text = cornell.replace(block, integrator);
+        snell::load_str(&repo("scenes/cornell-box.xml"), &text, &LoadOptions::default()).unwrap_or_else(|e| panic!("{integrator}: {e}"))
+    };
+    for plugin in ["prb", "prb_basic"] {
+        let scene = load(&format!("<integrator type=\"{plugin}\"/>"));
+        let Integrator::Path(p) = &scene.integrator else { panic!("{plugin} is not read as path") };
+        assert_eq!((p.max_depth, p.rr_depth, p.hide_emitters), (6, 5, false), "{plugin}");
+        let scene = load(&format!(
+            "<integrator type=\"{plugin}\"><integer name=\"max_depth\" value=\"-1\"/><integer name=\"rr_depth\" value=\"3\"/><boolean name=\"hide_emitters\" value=\"true\"/></integrator>"
+        ));
+        let Integrator::Path(p) = &scene.integrator else { panic!("{plugin} is not read as path") };
+        assert_eq!((p.max_depth, p.rr_depth, p.hide_emitters), (u32::MAX, 3, true), "{plugin}");
+    }
+    let Integrator::VolPath(v) = &load("<integrator type=\"prbvolpath\"/>").integrator else { panic!("prbvolpath is not read as volpath") };
+    assert_eq!(v.max_depth, 6);
+    let Integrator::VolPath(v) = &load("<integrator type=\"volpath\"/>").integrator else { panic!("volpath") };
+    assert_eq!(v.max_depth, u32::MAX);
+    // And a misspelt parameter is still an error.
+    let text = cornell.replace(block, "<integrator type=\"prb\"><integer name=\"max_dept\" value=\"3\"/></integrator>");
+    assert!(snell::load_str(&repo("scenes/cornell-box.xml"), &text, &LoadOptions::default()).is_err());
+}
+
 #[test]
 fn objects_declared_at_the_top_level_for_reference() {
     // Mitsuba's documentation scenes declare an area emitter and a sampler

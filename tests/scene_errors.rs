@@ -195,7 +195,7 @@ fn mitsuba3_plugins_snell_lacks_are_named_as_such() {
     let cases: &[(&str, &str, &[&str])] = &[
         ("    <emitter type=\"sunsky\"/>\n", "Mitsuba 3's emitter plugin \"sunsky\" (Hosek–Wilkie sky and sun) is not supported yet", &["envmap", "constant"]),
         ("    <bsdf type=\"hair\"/>\n", "Mitsuba 3's bsdf plugin \"hair\"", &["diffuse", "principled"]),
-        ("    <integrator type=\"prb\"/>\n", "path renders the same image", &["path", "volpath"]),
+        ("    <integrator type=\"prb_projective\"/>\n", "path renders the same image", &["path", "volpath", "prb"]),
         ("    <shape type=\"ellipsoids\"/>\n", "not supported yet", &["sphere", "ply"]),
     ];
     for (body, message, choices) in cases {
@@ -607,11 +607,11 @@ fn error_inside_an_included_file_points_into_that_file() {
     let dir = temp_dir("include-bad");
     let path = dir.join("scene.xml");
     let part = dir.join("part.xml");
-    std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"hair\"/>\n</scene>\n").unwrap();
+    std::fs::write(&part, "<scene version=\"3.0.0\">\n    <bsdf type=\"fur\"/>\n</scene>\n").unwrap();
     let text = scene("    <include filename=\"part.xml\"/>\n");
     std::fs::write(&path, &text).unwrap();
     let e = snell::load_file(&path, &LoadOptions::default()).err().expect("should fail");
-    assert_error(&e, &part, 2, 5, "<bsdf", "unknown bsdf plugin \"hair\"");
+    assert_error(&e, &part, 2, 5, "<bsdf", "unknown bsdf plugin \"fur\"");
     assert_help(&e, &["diffuse, mask, normalmap, null, plastic, polarizer, pplastic, principled, principledthin, retarder, roughconductor, roughdielectric, roughplastic, thindielectric, twosided"]);
 
     // Malformed XML in the included file, too.

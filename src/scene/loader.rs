@@ -49,7 +49,8 @@ pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
 pub const SAMPLERS: [&str; 7] = crate::sampler::NAMES;
-pub const INTEGRATORS: [&str; 12] = ["direct", "path", "ptracer", "bdpt", "sppm", "stokes", "aov", "moment", "vcm", "volpath", "volpathmis", "prbvolpath"];
+pub const INTEGRATORS: [&str; 14] =
+    ["direct", "path", "ptracer", "bdpt", "sppm", "stokes", "aov", "moment", "vcm", "volpath", "volpathmis", "prbvolpath", "prb", "prb_basic"];
 pub const MEDIA: [&str; 2] = ["homogeneous", "heterogeneous"];
 pub const PHASES: [&str; 2] = ["isotropic", "hg"];
 pub const VOLUMES: [&str; 2] = ["constvolume", "gridvolume"];
@@ -1489,8 +1490,27 @@ impl Loader {
                     alpha,
                 })
             }
+            "prb" | "prb_basic" => {
+                // Mitsuba's differentiable path tracers: their primal image
+                // is the path tracer's. Their default depth is that of
+                // Mitsuba's ADIntegrator base, 6, not path's unlimited.
+                let max_depth = props.int_checked("max_depth", 6, |v| v >= -1, "-1 (unlimited) or a non-negative integer")?;
+                let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
+                self.light_sampling(&props, &LightSampling::NAMES)?;
+                Integrator::Path(PathTracer {
+                    max_depth: self.depth_limit(&props, "max_depth", max_depth),
+                    rr_depth: self.depth_limit(&props, "rr_depth", rr_depth),
+                    hide_emitters: props.bool("hide_emitters", false)?,
+                    emitter_samples: 1,
+                    bsdf_samples: 1,
+                    guiding: None,
+                })
+            }
             "volpath" | "volpathmis" | "prbvolpath" => {
-                let max_depth = props.int_checked("max_depth", -1, |v| v >= -1, "-1 (unlimited) or a non-negative integer")?;
+                // prbvolpath, a differentiable integrator, defaults to depth 6
+                // as Mitsuba's ADIntegrator base does.
+                let default_depth = if node.plugin == "prbvolpath" { 6 } else { -1 };
+                let max_depth = props.int_checked("max_depth", default_depth, |v| v >= -1, "-1 (unlimited) or a non-negative integer")?;
                 let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
                 self.light_sampling(&props, &LightSampling::NAMES)?;
                 if node.plugin == "volpathmis" {
