@@ -1397,8 +1397,12 @@ impl Loader {
                     hide_emitters: props.bool("hide_emitters", false)?,
                 })
             }
-            "path" => {
-                let max_depth = props.int_checked("max_depth", -1, |v| v >= -1, "-1 (unlimited) or a non-negative integer")?;
+            "path" | "prb" | "prb_basic" => {
+                // prb and prb_basic, Mitsuba's differentiable path tracers,
+                // render path's image; their default depth is that of
+                // Mitsuba's ADIntegrator base, 6, not path's unlimited.
+                let default_depth = if node.plugin == "path" { -1 } else { 6 };
+                let max_depth = props.int_checked("max_depth", default_depth, |v| v >= -1, "-1 (unlimited) or a non-negative integer")?;
                 let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
                 self.light_sampling(&props, &LightSampling::NAMES)?;
                 Integrator::Path(PathTracer {
@@ -1488,22 +1492,6 @@ impl Loader {
                     initial_radius,
                     radius_footprints,
                     alpha,
-                })
-            }
-            "prb" | "prb_basic" => {
-                // Mitsuba's differentiable path tracers: their primal image
-                // is the path tracer's. Their default depth is that of
-                // Mitsuba's ADIntegrator base, 6, not path's unlimited.
-                let max_depth = props.int_checked("max_depth", 6, |v| v >= -1, "-1 (unlimited) or a non-negative integer")?;
-                let rr_depth = props.int_checked("rr_depth", 5, |v| v > 0, "positive")?;
-                self.light_sampling(&props, &LightSampling::NAMES)?;
-                Integrator::Path(PathTracer {
-                    max_depth: self.depth_limit(&props, "max_depth", max_depth),
-                    rr_depth: self.depth_limit(&props, "rr_depth", rr_depth),
-                    hide_emitters: props.bool("hide_emitters", false)?,
-                    emitter_samples: 1,
-                    bsdf_samples: 1,
-                    guiding: None,
                 })
             }
             "volpath" | "volpathmis" | "prbvolpath" => {
