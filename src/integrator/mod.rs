@@ -5,6 +5,7 @@
 
 pub mod aov;
 pub mod bdpt;
+pub mod depth;
 pub mod direct;
 pub mod guiding;
 pub mod kernels;
@@ -19,6 +20,7 @@ pub mod wavefront;
 
 pub use aov::{Aov, AovKind, Moment};
 pub use bdpt::{Bdpt, BdptScratch};
+pub use depth::Depth;
 pub use direct::Direct;
 pub use path::PathTracer;
 pub use ptracer::ParticleTracer;
@@ -54,6 +56,8 @@ pub enum Integrator {
     Vcm(Vcm),
     /// Path tracing through participating media.
     VolPath(VolPath),
+    /// The distance to the first hit along each camera ray.
+    Depth(Depth),
 }
 
 impl Integrator {
@@ -66,7 +70,7 @@ impl Integrator {
             Integrator::Bdpt(_) => Some("bdpt"),
             Integrator::Vcm(_) => Some("vcm"),
             Integrator::Sppm(_) => Some("sppm"),
-            Integrator::Direct(_) | Integrator::Path(_) | Integrator::VolPath(_) | Integrator::Aov(_) | Integrator::Moment(_) => None,
+            Integrator::Direct(_) | Integrator::Path(_) | Integrator::VolPath(_) | Integrator::Depth(_) | Integrator::Aov(_) | Integrator::Moment(_) => None,
         }
     }
 
@@ -78,6 +82,7 @@ impl Integrator {
             Integrator::Direct(d) => d.li(scene, ray, sampler, wl),
             Integrator::Path(p) => p.li_any(scene, ray, sampler, wl),
             Integrator::VolPath(v) => v.li(scene, ray, sampler, wl),
+            Integrator::Depth(d) => d.sample(scene, ray, wl).0,
             Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => S::zero(),
             Integrator::Aov(a) => a.integrators.first().map_or(S::zero(), |(_, i)| i.li(scene, ray, sampler, wl)),
             Integrator::Moment(m) => m.integrators.first().map_or(S::zero(), |(_, i)| i.li(scene, ray, sampler, wl)),
@@ -106,7 +111,7 @@ impl Integrator {
 
     pub fn channel_count(&self) -> usize {
         match self {
-            Integrator::Direct(_) | Integrator::Path(_) | Integrator::VolPath(_) | Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => 0,
+            Integrator::Direct(_) | Integrator::Path(_) | Integrator::VolPath(_) | Integrator::Depth(_) | Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => 0,
             _ => self.channel_names().len(),
         }
     }
@@ -134,6 +139,7 @@ impl Integrator {
                 let alpha = if scene.environment.is_some() && !v.hide_emitters { 1.0 } else { hits(v.hide_emitters) };
                 (v.li(scene, ray, sampler, wl), alpha)
             }
+            Integrator::Depth(d) => d.sample(scene, ray, wl),
             Integrator::Particle(_) | Integrator::Bdpt(_) | Integrator::Sppm(_) | Integrator::Vcm(_) => (S::zero(), 0.0),
             Integrator::Aov(a) => a.sample(scene, ray, sampler, wl, channels),
             Integrator::Moment(m) => m.sample(scene, ray, sampler, wl, channels),

@@ -49,8 +49,8 @@ pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
 pub const SAMPLERS: [&str; 7] = crate::sampler::NAMES;
-pub const INTEGRATORS: [&str; 14] =
-    ["direct", "path", "ptracer", "bdpt", "sppm", "stokes", "aov", "moment", "vcm", "volpath", "volpathmis", "prbvolpath", "prb", "prb_basic"];
+pub const INTEGRATORS: [&str; 15] =
+    ["direct", "path", "ptracer", "bdpt", "sppm", "stokes", "aov", "moment", "vcm", "volpath", "volpathmis", "prbvolpath", "prb", "prb_basic", "depth"];
 pub const MEDIA: [&str; 2] = ["homogeneous", "heterogeneous"];
 pub const PHASES: [&str; 2] = ["isotropic", "hg"];
 pub const VOLUMES: [&str; 2] = ["constvolume", "gridvolume"];
@@ -1511,6 +1511,7 @@ impl Loader {
                     hide_emitters: props.bool("hide_emitters", false)?,
                 })
             }
+            "depth" => Integrator::Depth(crate::integrator::Depth),
             _ => return Err(unknown_plugin(node, &INTEGRATORS)),
         };
         props.finish()?;

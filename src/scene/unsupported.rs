@@ -30,7 +30,6 @@ pub fn mitsuba3_plugin(kind: Kind, name: &str) -> Option<&'static str> {
         (Kind::Bsdf, "hair") => Some("a hair fibre BSDF"),
         (Kind::Bsdf, "measured" | "measured_polarized") => Some("a measured (tabulated) BSDF"),
         (Kind::Film, "specfilm") => Some("a film of spectral sensitivities"),
-        (Kind::Integrator, "depth") => Some("a depth integrator; the aov integrator's depth:… channel gives the same"),
         (Kind::Integrator, "direct_projective" | "prb_projective") => Some("a differentiable integrator; path renders the same image"),
         (Kind::Sensor, "radiancemeter" | "irradiancemeter" | "distant" | "batch") => Some("a measuring or multi-view sensor"),
         (Kind::Shape, "ellipsoids" | "ellipsoidsmesh") => Some("ellipsoid (Gaussian splat) primitives"),
