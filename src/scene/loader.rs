@@ -969,10 +969,8 @@ impl Loader {
     /// (or referenced) texture, and where it was given; `None` if absent.
     fn texture_input_at(&self, props: &Props, name: &str) -> Result<Option<(Texture, super::Location)>> {
         let at_prop = || props.node.props.iter().find(|p| p.name == name).map_or(&props.node.loc, |p| &p.loc).clone();
-        match props.spectrum_opt(name) {
-            Some((rgb, Some(listed))) => return Ok(Some((Texture::Spectral { rgb, spectrum: Arc::new(listed) }, at_prop()))),
-            Some((rgb, None)) => return Ok(Some((Texture::constant(rgb), at_prop()))),
-            None => {}
+        if let Some((rgb, listed)) = props.spectrum_opt(name) {
+            return Ok(Some((Texture::Spectral { rgb, spectrum: Arc::new(listed) }, at_prop())));
         }
         if let Some(c) = props.color_opt(name)? {
             return Ok(Some((Texture::constant(c), at_prop())));

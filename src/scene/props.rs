@@ -237,18 +237,18 @@ impl<'a> Props<'a> {
     /// A `<spectrum>` of `wavelength:value` pairs or a spectrum plugin, if
     /// that is what `name` is (other types are left for the other getters).
     pub fn listed_opt(&self, name: &str) -> Option<ListedSpectrum> {
-        self.spectrum_opt(name).and_then(|(_, spectrum)| spectrum)
+        self.spectrum_opt(name).map(|(_, spectrum)| spectrum)
     }
 
     /// A `<spectrum>` of pairs or a spectrum plugin read as a reflectance:
-    /// its RGB-mode colour and the spectrum spectral mode evaluates (`None`:
-    /// that colour's uplift). `None` for other types.
-    pub fn spectrum_opt(&self, name: &str) -> Option<(Rgb, Option<ListedSpectrum>)> {
+    /// its RGB-mode colour and the spectrum spectral mode evaluates. `None`
+    /// for other types.
+    pub fn spectrum_opt(&self, name: &str) -> Option<(Rgb, ListedSpectrum)> {
         let i = self.node.props.iter().position(|p| p.name == name)?;
         let out = match &self.node.props[i].value {
             Value::SpectrumList(v) => {
                 let listed = ListedSpectrum::new(v.clone())?;
-                (listed.to_rgb(false), Some(listed))
+                (listed.to_rgb(false), listed)
             }
             Value::SpectrumPlugin(p) => p.reflectance(),
             _ => return None,

@@ -657,19 +657,10 @@ impl Parser {
     /// `<spectrum type="…">`: one of Mitsuba's spectrum plugins, its
     /// parameters nested as properties (see `spectrum/plugins.rs`).
     fn parse_spectrum_plugin(&self, file: &Arc<SourceFile>, x: &XNode, plugin: &str, parent: &Node) -> Result<SpectrumPlugin> {
-        const PLUGINS: [&str; 6] = ["blackbody", "d65", "irregular", "regular", "srgb", "uniform"];
         let loc = loc_of(file, x);
-        let params: &[&str] = match plugin {
-            "uniform" => &["value", "wavelength_min", "wavelength_max"],
-            "regular" => &["wavelength_min", "wavelength_max", "values"],
-            "irregular" => &["wavelengths", "values"],
-            "blackbody" => &["temperature", "wavelength_min", "wavelength_max"],
-            "d65" => &["color", "scale"],
-            "srgb" => &["color", "unbounded"],
-            _ => {
-                return Err(SceneError::at(&attr_loc(file, x, "type"), format!("unknown spectrum plugin \"{plugin}\"")).with_choices(&PLUGINS));
-            }
-        };
+        let params = crate::spectrum::plugins::parameters(plugin).ok_or_else(|| {
+            SceneError::at(&attr_loc(file, x, "type"), format!("unknown spectrum plugin \"{plugin}\"")).with_choices(&crate::spectrum::plugins::NAMES)
+        })?;
         let mut props: Vec<Prop> = vec![];
         for c in x.children() {
             if c.is_comment() || c.is_text() && c.text().unwrap_or("").trim().is_empty() {

@@ -36,6 +36,22 @@ const SPEED_OF_LIGHT: f64 = 2.997_924_58e8;
 const PLANCK: f64 = 6.626_070_04e-34;
 const BOLTZMANN: f64 = 1.380_648_52e-23;
 
+/// The plugins' names, for error messages.
+pub const NAMES: [&str; 6] = ["blackbody", "d65", "irregular", "regular", "srgb", "uniform"];
+
+/// The parameters `plugin` takes (the table above); `None` for an unknown plugin.
+pub fn parameters(plugin: &str) -> Option<&'static [&'static str]> {
+    Some(match plugin {
+        "uniform" => &["value", "wavelength_min", "wavelength_max"],
+        "regular" => &["wavelength_min", "wavelength_max", "values"],
+        "irregular" => &["wavelengths", "values"],
+        "blackbody" => &["temperature", "wavelength_min", "wavelength_max"],
+        "d65" => &["color", "scale"],
+        "srgb" => &["color", "unbounded"],
+        _ => return None,
+    })
+}
+
 /// A spectrum plugin as the scene gave it.
 #[derive(Clone, Debug, PartialEq)]
 pub enum SpectrumPlugin {
@@ -100,20 +116,19 @@ impl SpectrumPlugin {
     }
 
     /// As a reflectance (or any colour that is not emission): its RGB-mode
-    /// colour, and the spectrum spectral mode evaluates (`None`: the
-    /// uplift of that colour).
-    pub fn reflectance(&self) -> (Rgb, Option<ListedSpectrum>) {
+    /// colour, and the spectrum spectral mode evaluates.
+    pub fn reflectance(&self) -> (Rgb, ListedSpectrum) {
         match self {
-            SpectrumPlugin::Uniform { value } => (Rgb::new(*value, *value, *value), Some(ListedSpectrum::constant(*value))),
-            SpectrumPlugin::Tabulated(s) => (spectrum_to_linear_srgb(s.samples(), false), Some(s.clone())),
+            SpectrumPlugin::Uniform { value } => (Rgb::new(*value, *value, *value), ListedSpectrum::constant(*value)),
+            SpectrumPlugin::Tabulated(s) => (spectrum_to_linear_srgb(s.samples(), false), s.clone()),
             SpectrumPlugin::D65 { color, scale } => {
                 // Mitsuba multiplies the colour's emission uplift by D65 here
                 // too: a `d65` reflectance is tinted by the illuminant.
                 let rgb = *color * *scale;
                 let (s, shape) = RgbUplift::get().illuminant(rgb);
-                (rgb, Some(tabulate(LAMBDA_MIN, LAMBDA_MAX, |l| s * shape.eval(l) * d65_unit(l))))
+                (rgb, tabulate(LAMBDA_MIN, LAMBDA_MAX, |l| s * shape.eval(l) * d65_unit(l)))
             }
-            SpectrumPlugin::Srgb { color, unbounded } => (*color, Some(srgb_spectrum(*color, *unbounded))),
+            SpectrumPlugin::Srgb { color, unbounded } => (*color, srgb_spectrum(*color, *unbounded)),
         }
     }
 
@@ -188,7 +203,6 @@ mod tests {
         assert!(e.spectrum.is_none());
         let (rgb, spectrum) = d65.reflectance();
         assert_eq!(rgb, Rgb::new(0.4, 0.8, 1.2));
-        let spectrum = spectrum.expect("a spectrum");
         let (s, shape) = RgbUplift::get().illuminant(rgb);
         for l in [400.0f32, 500.0, 600.0, 700.0] {
             let want = s * shape.eval(l) * d65_unit(l);
