@@ -239,9 +239,18 @@ def mesh_grid(n_tris):
 
 
 def write_mesh(path, n_tris):
-    """A closed bumpy sphere (radius ≈ 1) as binary little-endian PLY or OBJ; cached."""
+    """A closed bumpy sphere (radius ≈ 1) as binary little-endian PLY or OBJ; cached.
+    Written by a child process: the generator's Python objects leave this process's
+    heap hundreds of MiB large, and a process forked from it would start with that
+    resident set, which its peak RSS (ru_maxrss) then reports instead of its own."""
     if os.path.exists(path):
         return
+    subprocess.run([sys.executable, os.path.abspath(__file__), "--write-mesh-worker", path, str(n_tris)],
+                   check=True)
+
+
+def write_mesh_here(path, n_tris):
+    """write_mesh's work, in this process."""
     import array
     import math
     nu, nv = mesh_grid(n_tris)
@@ -765,6 +774,9 @@ def main():
     ap.add_argument("--sampler", help=argparse.SUPPRESS)
     ap.add_argument("--seeds", help=argparse.SUPPRESS)
     ap.add_argument("--out", help=argparse.SUPPRESS)
+    if len(sys.argv) == 4 and sys.argv[1] == "--write-mesh-worker":
+        write_mesh_here(sys.argv[2], int(sys.argv[3]))
+        return
     args = ap.parse_args()
     if args.mitsuba_mesh_worker:
         mitsuba_mesh_worker(args)
