@@ -154,7 +154,7 @@ impl Microfacet {
         } else {
             // Azimuth (shared by both distributions), then elevation.
             let (sin_phi, cos_phi, alpha2) = if self.alpha_u == self.alpha_v {
-                let (s, c) = (2.0 * PI * u.y).sin_cos();
+                let (s, c) = crate::math::trig::sin_cos_turn(u.y);
                 (s, c, self.alpha_u * self.alpha_u)
             } else {
                 let ratio = self.alpha_v / self.alpha_u;

@@ -236,7 +236,7 @@ impl Gtr1 {
 
     #[inline]
     pub fn sample(&self, u: Vec2) -> Vec3 {
-        let (sin_phi, cos_phi) = (2.0 * PI * u.x).sin_cos();
+        let (sin_phi, cos_phi) = crate::math::trig::sin_cos_turn(u.x);
         let a2 = self.alpha * self.alpha;
         let cos2 = (1.0 - a2.powf(1.0 - u.y)) / (1.0 - a2);
         let sin_theta = (1.0 - cos2).max(0.0).sqrt();

@@ -141,7 +141,7 @@ impl Cylinder {
     /// Uniform by area.
     #[inline(always)]
     pub fn sample_position(&self, u: Vec2) -> PositionSample {
-        let (s, c) = (2.0 * PI * u.y).sin_cos();
+        let (s, c) = crate::math::trig::sin_cos_turn(u.y);
         let p = self.to_world.point(Vec3::new(c * self.radius, s * self.radius, u.x * self.length));
         let n = self.to_world.vector(Vec3::new(c, s, 0.0)).normalize_or_zero();
         let n = if self.flip_normals { -n } else { n };

@@ -1,7 +1,7 @@
 //! Warps from the unit square to the domains the renderer samples, each with
 //! its density. The chi² tests of the BSDFs rely on these pdfs being exact.
 
-use super::trig::sin_cos_quarter;
+use super::trig::{sin_cos_quarter, sin_cos_turn};
 use super::{INV_FOUR_PI, INV_PI, PI};
 use glam::{Vec2, Vec3};
 
@@ -41,7 +41,7 @@ pub fn cosine_hemisphere_pdf(v: Vec3) -> f32 {
 pub fn square_to_uniform_sphere(u: Vec2) -> Vec3 {
     let z = 1.0 - 2.0 * u.y;
     let r = (1.0 - z * z).max(0.0).sqrt();
-    let (s, c) = (2.0 * PI * u.x).sin_cos();
+    let (s, c) = sin_cos_turn(u.x);
     Vec3::new(r * c, r * s, z)
 }
 
@@ -60,7 +60,7 @@ pub fn square_to_uniform_cone(u: Vec2, cos_max: f32) -> Vec3 {
     let one_minus_cos = u.y * (1.0 - cos_max);
     let cos_t = 1.0 - one_minus_cos;
     let sin_t = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
-    let (s, c) = (2.0 * PI * u.x).sin_cos();
+    let (s, c) = sin_cos_turn(u.x);
     Vec3::new(c * sin_t, s * sin_t, cos_t)
 }
 

@@ -32,6 +32,23 @@ pub fn sin_cos_quarter(x: f32) -> (f32, f32) {
     (s, c)
 }
 
+/// (sin 2πu, cos 2πu) for any finite `u` (turns): the nearest quarter turn
+/// is folded out and the rest, within ±π/4, goes to [`sin_cos_quarter`].
+/// For the warps that draw an azimuth 2πu (uniform sphere and cone,
+/// microfacet normals): libm's `sincosf` took 3.7 % of a sky-lit mesh's
+/// render (perf). Absolute error below 4·10⁻⁷ (tested against `f64`).
+#[inline(always)]
+pub fn sin_cos_turn(u: f32) -> (f32, f32) {
+    let q = (u * 4.0).round();
+    let (s, c) = sin_cos_quarter((u - 0.25 * q) * std::f32::consts::TAU);
+    match q as i64 & 3 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
+}
+
 /// atan2(y, x) in (−π, π], as `f32::atan2` to within 2.5 ulp (see the module
 /// documentation).
 #[inline(always)]
@@ -98,6 +115,24 @@ mod tests {
         assert!(atan2(f32::NAN, 1.0).is_nan() && atan2(1.0, f32::NAN).is_nan());
         // Exact on the diagonal.
         assert_eq!(atan2(1.0, 1.0), std::f32::consts::FRAC_PI_4);
+    }
+
+    #[test]
+    fn turns_match_f64_over_whole_and_negative_turns() {
+        let n = 1_000_000;
+        let mut worst = 0.0f64;
+        for i in 0..=n {
+            for u in [i as f32 / n as f32, -(i as f32) / n as f32, 3.0 + i as f32 / n as f32] {
+                let (s, c) = sin_cos_turn(u);
+                let a = std::f64::consts::TAU * u as f64;
+                worst = worst.max((s as f64 - a.sin()).abs()).max((c as f64 - a.cos()).abs());
+            }
+        }
+        assert!(worst < 4e-7, "absolute error {worst:e}");
+        assert_eq!(sin_cos_turn(0.0), (0.0, 1.0));
+        assert_eq!(sin_cos_turn(0.25), (1.0, -0.0));
+        assert_eq!(sin_cos_turn(0.5), (-0.0, -1.0));
+        assert_eq!(sin_cos_turn(0.75), (-1.0, 0.0));
     }
 
     #[test]
