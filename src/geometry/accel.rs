@@ -1718,7 +1718,6 @@ mod tests {
         assert!(hits > 1000, "{hits}");
     }
 
-    /// A closed, bumpy sphere of a few thousand triangles (shared edges and
     /// Both builds: a scene just above `SMALL_BUILD` (binary leaves of up to
     /// `MAX_LEAF`) and one below it (binary tree to single primitives,
     /// grouped by the collapse) answer as brute force does.
@@ -1732,6 +1731,7 @@ mod tests {
         }
     }
 
+    /// A closed, bumpy sphere of a few thousand triangles (shared edges and
     /// vertices), seen from inside and outside.
     #[test]
     fn big_mesh() {
