@@ -774,10 +774,11 @@ def main():
     ap.add_argument("--sampler", help=argparse.SUPPRESS)
     ap.add_argument("--seeds", help=argparse.SUPPRESS)
     ap.add_argument("--out", help=argparse.SUPPRESS)
-    if len(sys.argv) == 4 and sys.argv[1] == "--write-mesh-worker":
-        write_mesh_here(sys.argv[2], int(sys.argv[3]))
-        return
+    ap.add_argument("--write-mesh-worker", nargs=2, metavar=("PATH", "TRIANGLES"), help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.write_mesh_worker:
+        write_mesh_here(args.write_mesh_worker[0], int(args.write_mesh_worker[1]))
+        return
     if args.mitsuba_mesh_worker:
         mitsuba_mesh_worker(args)
         return
