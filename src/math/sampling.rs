@@ -15,13 +15,13 @@ pub fn square_to_uniform_disk_concentric(u: Vec2) -> Vec2 {
     }
     // φ = π/4 · y/x, or π/2 − π/4 · x/y (sine and cosine swapped): the
     // angle the polynomials take stays within ±π/4 ([`super::trig`]).
-    if x.abs() > y.abs() {
-        let (s, c) = sin_cos_quarter((PI / 4.0) * (y / x));
-        Vec2::new(x * c, x * s)
-    } else {
-        let (s, c) = sin_cos_quarter((PI / 4.0) * (x / y));
-        Vec2::new(y * s, y * c)
-    }
+    // One evaluation with its operands selected, not two branches: which
+    // side wins is random, and a jump on it is mispredicted half the time.
+    let wide = x.abs() > y.abs();
+    let (num, den) = if wide { (y, x) } else { (x, y) };
+    let (s, c) = sin_cos_quarter((PI / 4.0) * (num / den));
+    let (a, b) = if wide { (c, s) } else { (s, c) };
+    Vec2::new(den * a, den * b)
 }
 
 /// Cosine-weighted hemisphere around +z (Malley's method); pdf = cosθ/π.
