@@ -148,7 +148,15 @@ impl DiscreteDistribution {
 #[inline]
 pub fn sample_cdf_reuse(cdf: &[f32], u: f32) -> (usize, f32) {
     let n = cdf.len();
-    let i = cdf.partition_point(|&c| c <= u).min(n - 1);
+    // The CDF is sorted, so the partition point is the count of entries
+    // ≤ u: for a few bins (an emitting rectangle's two triangles) counted
+    // without a jump, whose outcome is a coin flip per sample.
+    let count = if n <= 8 {
+        cdf.iter().map(|&c| usize::from(c <= u)).sum::<usize>()
+    } else {
+        cdf.partition_point(|&c| c <= u)
+    };
+    let i = count.min(n - 1);
     // The bin's lower end without a branch on i (for a few bins, as an
     // emitting rectangle's two triangles, it is a coin flip).
     let lo = cdf[i.saturating_sub(1)] * (i as f32).min(1.0);
@@ -213,5 +221,29 @@ mod tests {
         assert_eq!(d.sample_reuse(0.3).0, 2);
         let (_, r) = d.sample_reuse(0.625);
         assert!((r - 0.5).abs() < 1e-5);
+    }
+
+    /// The counted bin of short CDFs is the binary search's, for zero-weight
+    /// bins (repeated entries), u exactly on an entry, at 0 and past 1.
+    #[test]
+    fn short_cdfs_pick_the_binary_searchs_bin() {
+        let mut rng = crate::math::Pcg32::new(11, 2);
+        for n in 1..=12 {
+            for _ in 0..2000 {
+                let weights: Vec<f32> = (0..n)
+                    .map(|_| if rng.next_f32() < 0.3 { 0.0 } else { rng.next_f32() })
+                    .collect();
+                let d = DiscreteDistribution::new(weights);
+                if d.sum() <= 0.0 {
+                    continue;
+                }
+                let cdf = d.cdf();
+                let pick = cdf[(rng.next_f32() * n as f32) as usize % n];
+                for u in [rng.next_f32(), pick, 0.0, 1.0, 1.5] {
+                    let want = cdf.partition_point(|&c| c <= u).min(n - 1);
+                    assert_eq!(sample_cdf_reuse(cdf, u).0, want, "u {u} in {cdf:?}");
+                }
+            }
+        }
     }
 }
