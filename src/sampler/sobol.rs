@@ -55,7 +55,7 @@ pub(crate) fn sobol0(index: u64) -> u32 {
 /// result bit j is the parity of the index bits at the supersets of j: the
 /// GF(2) superset transform of the index, six shift-and-xor steps (the
 /// Pascal matrix mod 2 is the 6-fold Kronecker power of [[1,1],[0,1]]).
-#[inline]
+#[cfg(test)]
 pub(crate) fn sobol1(index: u64) -> u32 {
     sobol1_reversed(index).reverse_bits()
 }
@@ -87,7 +87,7 @@ const SOBOL1_REVERSED_BYTE: [u8; 256] = {
 
 /// [`sobol1_reversed`], by a table lookup for indices below 256.
 #[inline(always)]
-fn sobol1_reversed_small(index: u64) -> u32 {
+pub(crate) fn sobol1_reversed_small(index: u64) -> u32 {
     if index < 256 { SOBOL1_REVERSED_BYTE[index as usize] as u32 } else { sobol1_reversed(index) }
 }
 
