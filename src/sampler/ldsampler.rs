@@ -20,7 +20,7 @@
 //! Mitsuba shifts all draws of a pixel alike; here each draw has its own
 //! shift.
 
-use super::sobol::{sobol0, sobol1_reversed_small};
+use super::sobol::sobol01;
 use super::{SampleId, dim_hash, mix64, permute, uniform2, unit};
 use glam::Vec2;
 
@@ -60,7 +60,7 @@ impl LdSampler {
     #[inline(never)]
     pub fn next_1d(&mut self) -> f32 {
         match self.draw() {
-            Some((i, shift)) => unit(sobol0(i) ^ shift as u32),
+            Some((i, shift)) => unit(sobol01(i) as u32 ^ shift as u32),
             None => uniform2(self.id.pixel_seed, self.id.index, self.dim).0,
         }
     }
@@ -69,10 +69,8 @@ impl LdSampler {
     pub fn next_2d(&mut self) -> Vec2 {
         match self.draw() {
             Some((i, shift)) => {
-                // sobol0(i) in the low half and sobol1(i) in the high half
-                // by one 64-bit reversal (x86 has no bit-reverse instruction:
-                // each reversal is a dozen shifts and masks).
-                let both = ((i << 32) | sobol1_reversed_small(i) as u64).reverse_bits() ^ shift;
+                // sobol0(i) in the low half and sobol1(i) in the high half.
+                let both = sobol01(i) ^ shift;
                 Vec2::new(unit(both as u32), unit((both >> 32) as u32))
             }
             None => {

@@ -43,8 +43,9 @@ pub(crate) const SOBOL1: [u32; 64] = {
     v
 };
 
-/// Sobol dimension 0 of `index` as 32 fraction bits.
-#[inline]
+/// Sobol dimension 0 of `index` as 32 fraction bits (the definition; the
+/// draws take [`sobol01`] or reverse scrambled bits).
+#[cfg(test)]
 pub(crate) fn sobol0(index: u64) -> u32 {
     (index as u32).reverse_bits()
 }
@@ -87,8 +88,35 @@ const SOBOL1_REVERSED_BYTE: [u8; 256] = {
 
 /// [`sobol1_reversed`], by a table lookup for indices below 256.
 #[inline(always)]
-pub(crate) fn sobol1_reversed_small(index: u64) -> u32 {
+fn sobol1_reversed_small(index: u64) -> u32 {
     if index < 256 { SOBOL1_REVERSED_BYTE[index as usize] as u32 } else { sobol1_reversed(index) }
+}
+
+/// Sobol dimensions 0 and 1 of indices below 256, the top byte of each
+/// (the rest is zero): what a 2-D draw of a pixel with up to 256 samples
+/// takes without any bit reversal.
+const SOBOL01_BYTES: [[u8; 2]; 256] = {
+    let mut t = [[0u8; 2]; 256];
+    let mut i = 0;
+    while i < 256 {
+        t[i] = [(i as u8).reverse_bits(), (sobol1_reversed(i as u64) as u8).reverse_bits()];
+        i += 1;
+    }
+    t
+};
+
+/// Sobol dimension 0 of `index` in the low 32 bits and dimension 1 in the
+/// high 32, from a table for indices below 256, else by one 64-bit bit
+/// reversal (x86 has no bit-reverse instruction: a reversal is a dozen
+/// shifts and masks).
+#[inline(always)]
+pub(crate) fn sobol01(index: u64) -> u64 {
+    if index < 256 {
+        let [d0, d1] = SOBOL01_BYTES[index as usize];
+        ((d1 as u64) << 56) | ((d0 as u64) << 24)
+    } else {
+        ((index << 32) | sobol1_reversed(index) as u64).reverse_bits()
+    }
 }
 
 /// [`sobol1`] by the matrix's columns, one per index bit (the definition;
@@ -196,6 +224,18 @@ mod tests {
             for idx in [i, x, x >> (x % 64), x & 0xfffff] {
                 assert_eq!(sobol1(idx), sobol1_by_columns(idx), "index {idx:#x}");
             }
+        }
+    }
+
+    #[test]
+    fn both_dimensions_at_once_are_sobol0_and_sobol1() {
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        for i in (0..1024u64).chain((0..2000).map(|k| {
+            x = mix64(x ^ k);
+            x >> (x % 64)
+        })) {
+            // Indices below 256 from the table, the others by the reversal.
+            assert_eq!(sobol01(i), ((sobol1(i) as u64) << 32) | sobol0(i) as u64, "index {i:#x}");
         }
     }
 
