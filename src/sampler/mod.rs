@@ -337,6 +337,13 @@ impl Sampler {
         if let Method::Independent(s) = &mut self.method {
             return s.next_2d();
         }
+        // `ldsampler`'s draw inline as well (about 45 instructions, no
+        // loop): the caller's work overlaps it, where a call waited for it
+        // (Cornell box 256², 128 spp, CPU 10.06 → 9.79 s; `independent`
+        // unchanged).
+        if let Method::LdSampler(s) = &mut self.method {
+            return s.next_2d_inline();
+        }
         self.next_2d_patterned()
     }
 
