@@ -337,11 +337,11 @@ impl Sampler {
         if let Method::Independent(s) = &mut self.method {
             return s.next_2d();
         }
-        // `ldsampler`'s and `multijitter`'s draws inline as well (no loops
-        // in them): the caller's work overlaps the draw, where a call waited
-        // for it. Cornell box 256², 128 spp, CPU: `ldsampler` 10.06 → 9.79 s,
-        // `multijitter` 10.37 → 9.93 s; `independent` unchanged; `sobol`
-        // gained nothing from it (5.40 → 5.36 s) and stays out of line.
+        // `ldsampler`'s and `multijitter`'s draws inline as well (straight
+        // code; `permute`'s cycle-walking loop stays out of line): the
+        // caller's work overlaps the draw, where a call waited for it (2–4 %
+        // of a render; README, "What the patterned samplers cost"). `sobol`
+        // gained nothing from it and stays out of line.
         match &mut self.method {
             Method::LdSampler(s) => s.next_2d_inline(),
             Method::Multijitter(s) => s.next_2d_inline(),
