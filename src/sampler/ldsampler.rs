@@ -65,16 +65,9 @@ impl LdSampler {
         }
     }
 
-    /// The 2-D draw out of line (for the dispatch of `Sampler::next_2d`'s
-    /// out-of-line draws).
-    #[inline(never)]
-    pub fn next_2d(&mut self) -> Vec2 {
-        self.next_2d_inline()
-    }
-
-    /// The 2-D draw, inlined where `Sampler::next_2d` is.
+    /// Inlined where `Sampler::next_2d` is (see there).
     #[inline(always)]
-    pub fn next_2d_inline(&mut self) -> Vec2 {
+    pub fn next_2d(&mut self) -> Vec2 {
         match self.draw() {
             Some((i, shift)) => {
                 // sobol0(i) in the low half and sobol1(i) in the high half.

@@ -343,12 +343,14 @@ impl Sampler {
         // of a render; README, "What the patterned samplers cost"). `sobol`
         // gained nothing from it and stays out of line.
         match &mut self.method {
-            Method::LdSampler(s) => s.next_2d_inline(),
-            Method::Multijitter(s) => s.next_2d_inline(),
+            Method::LdSampler(s) => s.next_2d(),
+            Method::Multijitter(s) => s.next_2d(),
             _ => self.next_2d_patterned(),
         }
     }
 
+    /// The out-of-line 2-D draws (the kinds `next_2d` draws inline never
+    /// come here; their arms complete the match).
     #[inline(never)]
     fn next_2d_patterned(&mut self) -> Vec2 {
         match &mut self.method {

@@ -84,16 +84,9 @@ impl Multijitter {
         v
     }
 
-    /// The 2-D draw out of line (for the dispatch of `Sampler::next_2d`'s
-    /// out-of-line draws).
-    #[inline(never)]
-    pub fn next_2d(&mut self) -> Vec2 {
-        self.next_2d_inline()
-    }
-
-    /// The 2-D draw, inlined where `Sampler::next_2d` is.
+    /// Inlined where `Sampler::next_2d` is (see there).
     #[inline(always)]
-    pub fn next_2d_inline(&mut self) -> Vec2 {
+    pub fn next_2d(&mut self) -> Vec2 {
         // Three permutation seeds from one hash of the draw.
         let h = dim_hash(self.id.pixel_seed, self.dim);
         let s = permute(self.id.index, self.id.count, h as u32);
