@@ -26,7 +26,7 @@ SCENES = [
     ("pool-sun", "scenes/pool-sun.xml", "sppm",
      '<integrator type="sppm"><integer name="max_depth" value="8"/><integer name="photon_count" value="250000"/></integrator>',
      96, []),
-    # photons = indirect: 3-5x the default's efficiency on this scene (README table).
+    # photons = indirect: 3-5x the default's efficiency on this scene (docs/performance.md).
     ("caustic-cornell-box", "scenes/caustic-cornell-box.xml", "sppm",
      '<integrator type="sppm"><integer name="max_depth" value="8"/><string name="photons" value="indirect"/></integrator>',
      256, []),

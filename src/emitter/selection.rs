@@ -17,8 +17,8 @@
 //! (Mitsuba 3 does not know `light_sampling` and refuses a scene that sets
 //! it; it chooses uniformly.) The default is `bvh`, the most efficient in
 //! every scene measured (`tools/light_efficiency.py`: on
-//! `scenes/many-lights.xml` several times Mitsuba's 1/(relMSE·s), see the
-//! README; with one emitter all three choose the same). `ptracer` takes
+//! `scenes/many-lights.xml` several times Mitsuba's 1/(relMSE·s), see
+//! docs/performance.md; with one emitter all three choose the same). `ptracer` takes
 //! only `uniform` or `power` and defaults to `power`: a light path starts
 //! before there is a point to weigh distance and orientation by.
 //!

@@ -340,7 +340,7 @@ impl Sampler {
         // `ldsampler`'s and `multijitter`'s draws inline as well (straight
         // code; `permute`'s cycle-walking loop stays out of line): the
         // caller's work overlaps the draw, where a call waited for it (2–4 %
-        // of a render; README, "What the patterned samplers cost"). `sobol`
+        // of a render; docs/performance.md, "What the patterned samplers cost"). `sobol`
         // gained nothing from it and stays out of line.
         match &mut self.method {
             Method::LdSampler(s) => s.next_2d(),
@@ -722,7 +722,7 @@ mod set_dimension_tests {
     /// n, neither with this hash nor with Kensler's: both compose maps that
     /// are affine on two bits, which reach 2 of the 6 linear parts there.
     /// The renderer's error per sample is the measure that counts: see the
-    /// README's sampler benchmarks.)
+    /// sampler benchmarks in docs/performance.md.)
     #[test]
     fn permutations_are_bijections_that_move_each_index_uniformly() {
         for n in (1..=70).chain([127, 128, 256, 1000, 1024]) {
