@@ -793,3 +793,47 @@ fn sdf_grid_errors_are_located() {
     let e = load("<shape type=\"sdfgrid\">\n<string name=\"filename\" value=\"short.vol\"/>\n</shape>");
     assert!(e.contains(":3:") && e.contains("short.vol") && e.contains("header"), "{e}");
 }
+
+/// A sphere's and a disk's texture coordinates (two arc tangents a sphere
+/// hit) are computed only where something reads them: a bitmap or
+/// checkerboard texture anywhere in the scene, or a `uv` AOV. Where one
+/// does, the hit's uv is Mitsuba's parameterisation; where none does, zero.
+#[test]
+fn sphere_and_disk_uv_only_where_something_reads_them() {
+    let dir = temp_dir("reads-uv");
+    let shapes = r#"<shape type="sphere"><float name="radius" value="1"/></shape>
+    <shape type="disk"><transform name="to_world"><translate z="-1.5"/></transform></shape>
+"#;
+    let plain = scene(shapes);
+    let textured = plain.replace(
+        r#"<float name="radius" value="1"/></shape>"#,
+        r#"<float name="radius" value="1"/><bsdf type="diffuse"><texture type="checkerboard" name="reflectance"/></bsdf></shape>"#,
+    );
+    let uv_aov = plain.replace(
+        r#"<integrator type="path"><integer name="max_depth" value="3"/></integrator>"#,
+        r#"<integrator type="aov"><string name="aovs" value="uv:uv"/><integrator type="path"/></integrator>"#,
+    );
+    assert!(textured != plain && uv_aov != plain, "the scene was not changed");
+    // Straight down onto the sphere at (x, y) and onto the disk at (x, y).
+    let (x, y) = (0.3f32, 0.2f32);
+    let z = (1.0 - x * x - y * y).sqrt();
+    let d = Vec3::new(0.0, 0.0, -1.0);
+    let mut phi = y.atan2(x);
+    if phi < 0.0 {
+        phi += std::f32::consts::TAU;
+    }
+    let sphere_uv = Vec2::new(phi / std::f32::consts::TAU, z.acos() / std::f32::consts::PI);
+    let disk_uv = Vec2::new((x * x + y * y).sqrt(), phi / std::f32::consts::TAU);
+    for (name, text, reads) in [("plain", &plain, false), ("textured", &textured, true), ("uv-aov", &uv_aov, true)] {
+        let s = load(&dir.join(format!("{name}.xml")), text).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(s.shapes.len(), 2, "{name}");
+        assert!(s.shapes.iter().all(|sh| sh.reads_uv == reads), "{name}: reads_uv should be {reads}");
+        let o = Vec3::new(x, y, 5.0);
+        let on_sphere = s.shapes[0].interaction(0, 0, o, d, 5.0 - z, (0.0, 0.0));
+        let on_disk = s.shapes[1].interaction(1, 0, o, d, 6.5, (0.0, 0.0));
+        assert!((on_sphere.p - Vec3::new(x, y, z)).length() < 1e-5, "{name}: sphere hit at {}", on_sphere.p);
+        let (want_sphere, want_disk) = if reads { (sphere_uv, disk_uv) } else { (Vec2::ZERO, Vec2::ZERO) };
+        assert!((on_sphere.uv - want_sphere).abs().max_element() < 1e-4, "{name}: sphere uv {} against {want_sphere}", on_sphere.uv);
+        assert!((on_disk.uv - want_disk).abs().max_element() < 1e-4, "{name}: disk uv {} against {want_disk}", on_disk.uv);
+    }
+}

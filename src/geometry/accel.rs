@@ -1630,7 +1630,7 @@ mod tests {
     }
 
     pub(super) fn shape(geometry: ShapeGeometry) -> Shape {
-        Shape { geometry, bsdf: 0, emitter: None, tangent_frame: false, pass_through: false, interior: None, exterior: None }
+        Shape { geometry, bsdf: 0, emitter: None, tangent_frame: false, pass_through: false, reads_uv: true, interior: None, exterior: None }
     }
 
     /// Checks closest hits and occlusion of `n` random rays against brute

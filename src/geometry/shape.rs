@@ -34,6 +34,11 @@ pub struct Shape {
     /// lobe (`mask`, `null`) and it does not emit. Scenes where no shape has
     /// it keep the plain closest-hit and any-hit paths.
     pub pass_through: bool,
+    /// Something in the scene reads a hit's texture coordinates (a bitmap
+    /// or checkerboard texture, a `uv` AOV). Where nothing does, a sphere's
+    /// or disk's hit skips them (two arc tangents, a fifth of a sphere
+    /// hit's cost) and reports zero.
+    pub reads_uv: bool,
     /// The media inside and outside this shape ([`crate::medium`]), indices
     /// into [`crate::scene::Scene::media`]; a shape that names either is a
     /// medium boundary for `volpath`.
@@ -113,11 +118,11 @@ impl Shape {
                 // Project onto the surface to remove the error of o + t·d.
                 let p = s.center + (p - s.center).normalize_or_zero() * s.radius;
                 let n = s.normal_at(p);
-                (p, n, n, s.uv_at(p), Vec2::ZERO)
+                (p, n, n, if self.reads_uv { s.uv_at(p) } else { Vec2::ZERO }, Vec2::ZERO)
             }
             ShapeGeometry::Disk(d) => {
                 let p = ray_o + ray_d * t;
-                (p, d.normal, d.normal, d.uv_at(p), Vec2::ZERO)
+                (p, d.normal, d.normal, if self.reads_uv { d.uv_at(p) } else { Vec2::ZERO }, Vec2::ZERO)
             }
             ShapeGeometry::Cylinder(c) => {
                 let (p, n, uv, _) = c.surface(ray_o + ray_d * t);

@@ -185,6 +185,9 @@ struct Loader {
     /// The `light_sampling` an integrator named explicitly (the default
     /// depends on the integrator).
     light_sampling: std::cell::Cell<Option<LightSampling>>,
+    /// Something reads texture coordinates: a bitmap or checkerboard
+    /// texture, or a `uv` AOV ([`Shape::reads_uv`]).
+    reads_uv: std::cell::Cell<bool>,
     /// The files read besides the scene's XML (meshes, images), in the
     /// order first read: [`Scene::files`].
     files: std::cell::RefCell<Vec<PathBuf>>,
@@ -303,6 +306,7 @@ impl Loader {
             instances: vec![],
             in_group: false,
             mesh_attribute_textures: Default::default(),
+            reads_uv: Default::default(),
             film_width: None,
             light_sampling: Default::default(),
             files: Default::default(),
@@ -449,6 +453,10 @@ impl Loader {
                 return Err(SceneError::at(loc, "bdpt cannot use a \"projector\" emitter (no density for its emitted directions); use path or ptracer")
                     .with_choices(&["area", "point", "spot", "constant", "envmap", "directional"]));
             }
+        }
+        let reads_uv = self.reads_uv.get();
+        for s in &mut self.shapes {
+            s.reads_uv = reads_uv;
         }
         let mut accel = Accel::build_instanced(&self.shapes, &self.top_shapes, &self.groups, &self.instances);
         // The vertex normals computed meanwhile, before the meshes are
@@ -628,7 +636,7 @@ impl Loader {
             return Err(SceneError::at(&node.loc, "a shape inside a shapegroup cannot bound a medium (instances of one medium boundary would share it)"));
         }
         props.finish()?;
-        let shape = Shape { geometry, bsdf, emitter, tangent_frame, pass_through, interior, exterior };
+        let shape = Shape { geometry, bsdf, emitter, tangent_frame, pass_through, reads_uv: true, interior, exterior };
         let has_area = !matches!(shape.geometry, ShapeGeometry::SdfGrid(_));
         if has_area && (shape.area() <= 0.0 || !shape.area().is_finite()) {
             return Err(SceneError::at(&node.loc, format!("this {} has zero or non-finite surface area", node.plugin)));
@@ -1016,6 +1024,9 @@ impl Loader {
     fn texture(&self, node: &Arc<Node>) -> Result<Texture> {
         let props = Props::new(node);
         let to_uv = uv_transform(&props.transform("to_uv")?.matrix);
+        if matches!(node.plugin.as_str(), "checkerboard" | "bitmap") {
+            self.reads_uv.set(true);
+        }
         let tex = match node.plugin.as_str() {
             "checkerboard" => Texture::Checkerboard(Checkerboard {
                 color0: props.color("color0", Rgb::new(0.4, 0.4, 0.4))?,
@@ -1573,6 +1584,9 @@ impl Loader {
                 };
                 return Err(SceneError::at(loc, msg).with_choices(&AovKind::NAMES));
             };
+            if kind == AovKind::Uv {
+                self.reads_uv.set(true);
+            }
             out.push((name.to_string(), kind));
         }
         Ok(out)
