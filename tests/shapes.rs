@@ -16,7 +16,7 @@ use snell::geometry::serialized;
 use snell::{LoadOptions, SceneError};
 use std::path::{Path, PathBuf};
 
-fn temp_dir(name: &str) -> PathBuf {
+pub(crate) fn temp_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("snell-shapes-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
@@ -24,7 +24,7 @@ fn temp_dir(name: &str) -> PathBuf {
 }
 
 /// A bumpy grid of (n+1)² vertices and 2n² triangles over [-1, 1]².
-fn bumpy_grid(n: u32) -> RawMesh {
+pub(crate) fn bumpy_grid(n: u32) -> RawMesh {
     let mut positions = vec![];
     let mut uvs = vec![];
     for j in 0..=n {
@@ -46,7 +46,7 @@ fn bumpy_grid(n: u32) -> RawMesh {
     RawMesh { positions, normals: None, uvs: Some(uvs), triangles, attributes: vec![] }
 }
 
-fn write_ply(path: &Path, m: &RawMesh) {
+pub(crate) fn write_ply(path: &Path, m: &RawMesh) {
     let mut s = format!(
         "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float u\nproperty float v\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
         m.positions.len(),

@@ -3,8 +3,9 @@
 //! take each of its branches (stream tracing and packets of shadow rays,
 //! pass-through shapes, `hide_emitters`, an environment, delta and rough
 //! BSDFs, several lights, Russian roulette from the first bounce,
-//! `max_depth` 1 and 2, the spectral mode with a dispersive prism), and the
-//! same image for any thread count and pass split.
+//! `max_depth` 1 and 2, the spectral mode with a dispersive prism, a mesh
+//! too big for the cache), and the same image for any thread count and pass
+//! split.
 
 use crate::common::*;
 use snell::film::Image;
@@ -107,4 +108,37 @@ fn wavefront_matches_path_at_every_simd_level() {
         scene.accel.set_simd_level(level);
         assert_same::<Rgb>(&format!("{level:?}"), &scene);
     }
+}
+
+/// A mesh big enough that the BVH prefetches (and with it the hit records'
+/// triangle indices and corners, a few hits ahead): the same image as the
+/// scalar path tracer, with and without shading normals.
+#[test]
+fn big_mesh_with_prefetched_hits_is_bit_identical_to_path() {
+    let dir = crate::shapes::temp_dir("wavefront-big-mesh");
+    crate::shapes::write_ply(&dir.join("grid.ply"), &crate::shapes::bumpy_grid(160));
+    for face_normals in ["false", "true"] {
+        let text = format!(
+            r#"<scene version="3.0.0">
+    <integrator type="path"><integer name="max_depth" value="4"/></integrator>
+    <sensor type="perspective">
+        <float name="fov" value="40"/>
+        <transform name="to_world"><lookat origin="0.3, -2.5, 2" target="0, 0, 0" up="0, 0, 1"/></transform>
+        <film type="hdrfilm"><integer name="width" value="40"/><integer name="height" value="40"/></film>
+        <sampler type="independent"><integer name="sample_count" value="8"/></sampler>
+    </sensor>
+    <shape type="ply">
+        <string name="filename" value="grid.ply"/>
+        <boolean name="face_normals" value="{face_normals}"/>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.6, 0.5, 0.4"/></bsdf>
+    </shape>
+    <emitter type="constant"><rgb name="radiance" value="1"/></emitter>
+    <emitter type="point"><point name="position" x="1" y="-1" z="3"/><rgb name="intensity" value="5"/></emitter>
+</scene>"#
+        );
+        let scene = snell::load_str(&dir.join("scene.xml"), &text, &snell::LoadOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+        assert!(scene.accel.prefetches(), "51 200 triangles should make a BVH that prefetches");
+        assert_same::<Rgb>(&format!("big mesh, face_normals {face_normals}"), &scene);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -1159,6 +1159,12 @@ impl Accel {
             + self.groups.iter().map(Accel::node_bytes).sum::<usize>()
     }
 
+    /// Whether the tree is too big for a core's cache, so that its
+    /// traversal prefetches (and the meshes behind it are likely cold too).
+    pub fn prefetches(&self) -> bool {
+        self.prefetches
+    }
+
     /// The instruction set the traversal runs with.
     pub fn simd_level(&self) -> SimdLevel {
         self.level

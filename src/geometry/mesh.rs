@@ -185,6 +185,26 @@ impl Mesh {
         [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
     }
 
+    /// Prefetches triangle `i`'s corner indices, the first of a hit's two
+    /// dependent reads (see [`Mesh::prefetch_corners`]).
+    #[inline(always)]
+    pub fn prefetch_indices(&self, i: usize) {
+        super::prefetch(self.triangles.get(i));
+    }
+
+    /// Prefetches triangle `i`'s corner positions and shading normals,
+    /// reading its indices: call it once those have arrived.
+    #[inline(always)]
+    pub fn prefetch_corners(&self, i: usize) {
+        let Some(&corners) = self.triangles.get(i) else { return };
+        for v in corners.map(|v| v as usize) {
+            super::prefetch(self.positions.get(v));
+            if let Some(normals) = &self.normals {
+                super::prefetch(normals.get(v));
+            }
+        }
+    }
+
     pub fn triangle_area(&self, i: usize) -> f32 {
         let [a, b, c] = self.vertices(i);
         0.5 * (b - a).cross(c - a).length()

@@ -477,6 +477,11 @@ fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u3
     bad
 }
 
+/// How many hits ahead `trace_extension` prefetches a triangle's indices,
+/// and its corners.
+const PREFETCH_INDICES_AHEAD: usize = 16;
+const PREFETCH_CORNERS_AHEAD: usize = 8;
+
 /// Stage 1: the surfaces the live paths' rays meet, into `q.si` / `q.hit`.
 #[inline(never)]
 fn trace_extension<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Queues<S>) {
@@ -501,7 +506,25 @@ fn trace_extension<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &
         q.rays.extend(q.live.iter().map(|&i| q.ray[i as usize]));
         scene.accel.intersect_stream(&q.rays, &mut q.hits[..m]);
     }
+    // On a mesh too big for the cache a hit's record waits on two
+    // dependent misses (the triangle's indices, then its corners): both are
+    // prefetched a few hits ahead, so that they overlap with the work on
+    // the hits before.
+    let prefetch = scene.accel.prefetches();
+    if prefetch {
+        for h in q.hits[..m.min(PREFETCH_INDICES_AHEAD)].iter().flatten() {
+            scene.prefetch_interaction(h, false);
+        }
+    }
     for (k, &i) in q.live.iter().enumerate() {
+        if prefetch {
+            if let Some(Some(h)) = q.hits[..m].get(k + PREFETCH_INDICES_AHEAD) {
+                scene.prefetch_interaction(h, false);
+            }
+            if let Some(Some(h)) = q.hits[..m].get(k + PREFETCH_CORNERS_AHEAD) {
+                scene.prefetch_interaction(h, true);
+            }
+        }
         let i = i as usize;
         q.hit[i] = match &q.hits[k] {
             Some(h) => {

@@ -104,6 +104,20 @@ impl Scene {
         shape.interaction_into(hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary, out)
     }
 
+    /// Prefetches what [`Scene::interaction_into`] will read for `hit` on a
+    /// mesh: with `corners` false the triangle's corner indices, with it
+    /// true the corners themselves (by then the indices should be in cache).
+    #[inline(always)]
+    pub(crate) fn prefetch_interaction(&self, hit: &crate::geometry::accel::Hit, corners: bool) {
+        if let Some(crate::geometry::ShapeGeometry::Mesh(m)) = self.shapes.get(hit.shape as usize).map(|s| &s.geometry) {
+            if corners {
+                m.prefetch_corners(hit.prim as usize);
+            } else {
+                m.prefetch_indices(hit.prim as usize);
+            }
+        }
+    }
+
     /// The first hit on a shape that does not emit: Mitsuba's
     /// `hide_emitters` lets camera rays pass through emitting shapes.
     pub fn intersect_hiding_emitters(&self, ray: &Ray) -> Option<SurfaceInteraction> {
