@@ -936,9 +936,9 @@ impl Accel {
         TriPacket::new([l[0], l[1], l[2]], [l[3], l[4], l[5]], [l[6], l[7], l[8]])
     }
 
-    /// Asks the cache for child `c` (a full node, or the lanes of a
-    /// `DIRECT` leaf that keeps them) ahead of its visit: the traversal
-    /// pushes the children it will visit later, and their loads, mostly
+    /// Asks the cache for child `c` (a full node, the lanes of a `DIRECT`
+    /// leaf that keeps them, or else its triangles' indices) ahead of its
+    /// visit: the traversal pushes the children it will visit later, and their loads, mostly
     /// misses on big meshes, then overlap with the work on the nearest.
     /// Only in BVHs bigger than `PREFETCH_MIN_BYTES`: in small ones
     /// everything is in cache and the prefetches cost (Cornell box: 4 %
@@ -956,6 +956,15 @@ impl Accel {
             } else if c & DIRECT != 0 && !self.lanes.f.is_empty() {
                 let first = ((c & !(LEAF | DIRECT)) >> 3) as usize;
                 (self.lanes.f.as_ptr().wrapping_add(first / PACKET * BLOCK) as *const i8, 5)
+            } else if c & DIRECT != 0 {
+                // Gathered from the mesh: its run of corner indices (at most
+                // eight triangles, 96 bytes); the corners depend on them.
+                let (first, n) = (((c & !(LEAF | DIRECT)) >> 3) as usize, (c & 7) as usize + 1);
+                if let Some(mesh) = self.meshes.get(self.direct as usize) {
+                    crate::geometry::prefetch(mesh.triangles.get(first));
+                    crate::geometry::prefetch(mesh.triangles.get(first + n - 1));
+                }
+                return;
             } else {
                 return;
             };
