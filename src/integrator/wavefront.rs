@@ -513,16 +513,16 @@ fn trace_extension<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &
     let prefetch = scene.accel.prefetches();
     if prefetch {
         for h in q.hits[..m.min(PREFETCH_INDICES_AHEAD)].iter().flatten() {
-            scene.prefetch_interaction(h, false);
+            scene.prefetch_hit_indices(h);
         }
     }
     for (k, &i) in q.live.iter().enumerate() {
         if prefetch {
             if let Some(Some(h)) = q.hits[..m].get(k + PREFETCH_INDICES_AHEAD) {
-                scene.prefetch_interaction(h, false);
+                scene.prefetch_hit_indices(h);
             }
             if let Some(Some(h)) = q.hits[..m].get(k + PREFETCH_CORNERS_AHEAD) {
-                scene.prefetch_interaction(h, true);
+                scene.prefetch_hit_corners(h);
             }
         }
         let i = i as usize;

@@ -104,17 +104,29 @@ impl Scene {
         shape.interaction_into(hit.shape, hit.prim, ray.o, ray.d, hit.t, hit.bary, out)
     }
 
-    /// Prefetches what [`Scene::interaction_into`] will read for `hit` on a
-    /// mesh: with `corners` false the triangle's corner indices, with it
-    /// true the corners themselves (by then the indices should be in cache).
+    /// Prefetches the corner indices of the triangle `hit` is on (if on a
+    /// mesh), the first of [`Scene::interaction_into`]'s two dependent reads.
     #[inline(always)]
-    pub(crate) fn prefetch_interaction(&self, hit: &crate::geometry::accel::Hit, corners: bool) {
-        if let Some(crate::geometry::ShapeGeometry::Mesh(m)) = self.shapes.get(hit.shape as usize).map(|s| &s.geometry) {
-            if corners {
-                m.prefetch_corners(hit.prim as usize);
-            } else {
-                m.prefetch_indices(hit.prim as usize);
-            }
+    pub(crate) fn prefetch_hit_indices(&self, hit: &crate::geometry::accel::Hit) {
+        if let Some(mesh) = self.hit_mesh(hit) {
+            mesh.prefetch_indices(hit.prim as usize);
+        }
+    }
+
+    /// Prefetches the corners of the triangle `hit` is on (if on a mesh);
+    /// its indices should be in cache by then.
+    #[inline(always)]
+    pub(crate) fn prefetch_hit_corners(&self, hit: &crate::geometry::accel::Hit) {
+        if let Some(mesh) = self.hit_mesh(hit) {
+            mesh.prefetch_corners(hit.prim as usize);
+        }
+    }
+
+    #[inline(always)]
+    fn hit_mesh(&self, hit: &crate::geometry::accel::Hit) -> Option<&crate::geometry::mesh::Mesh> {
+        match self.shapes.get(hit.shape as usize).map(|s| &s.geometry) {
+            Some(crate::geometry::ShapeGeometry::Mesh(m)) => Some(m),
+            _ => None,
         }
     }
 
