@@ -938,8 +938,9 @@ impl Accel {
 
     /// Asks the cache for child `c` (a full node, the lanes of a `DIRECT`
     /// leaf that keeps them, or else its triangles' indices) ahead of its
-    /// visit: the traversal pushes the children it will visit later, and their loads, mostly
-    /// misses on big meshes, then overlap with the work on the nearest.
+    /// visit: the traversal pushes the children it will visit later, and
+    /// their loads, mostly misses on big meshes, then overlap with the work
+    /// on the nearest.
     /// Only in BVHs bigger than `PREFETCH_MIN_BYTES`: in small ones
     /// everything is in cache and the prefetches cost (Cornell box: 4 %
     /// more CPU time; 1 M-triangle mesh: 4 % less).
