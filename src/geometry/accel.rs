@@ -1190,61 +1190,134 @@ impl Accel {
     /// The closest hit along the ray before `ray.tmax`.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        match self.level {
-            // SAFETY: `level` is only ever set to a level the CPU supports.
-            #[cfg(target_arch = "x86_64")]
-            SimdLevel::Avx512 => unsafe { self.closest_avx512(ray) },
-            #[cfg(target_arch = "x86_64")]
-            SimdLevel::Avx2 => unsafe { self.closest_avx2(ray) },
-            _ => self.closest_portable(ray),
-        }
+        let mut hit = None;
+        self.intersect_each(std::slice::from_ref(ray), std::slice::from_mut(&mut hit));
+        hit
     }
 
     /// Whether anything lies on the ray before `ray.tmax`.
     #[inline]
     pub fn occluded(&self, ray: &Ray) -> bool {
+        let mut blocked = false;
+        self.occluded_each(std::slice::from_ref(ray), std::slice::from_mut(&mut blocked));
+        blocked
+    }
+
+    /// The closest hit of each ray of `rays` into `hits` (same length), by
+    /// the single-ray traversal, one ray after the other.
+    pub(crate) fn intersect_each(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         match self.level {
             // SAFETY: `level` is only ever set to a level the CPU supports.
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Avx512 => unsafe { self.occluded_avx512(ray) },
+            SimdLevel::Avx512 => unsafe { self.closest_each_avx512(rays, hits) },
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Avx2 => unsafe { self.occluded_avx2(ray) },
-            _ => self.occluded_portable(ray),
+            SimdLevel::Avx2 => unsafe { self.closest_each_avx2(rays, hits) },
+            _ => self.closest_each_portable(rays, hits),
+        }
+    }
+
+    /// Whether anything lies on each ray of `rays` before its `tmax`, into
+    /// `out` (same length), by the single-ray traversal.
+    pub(crate) fn occluded_each(&self, rays: &[Ray], out: &mut [bool]) {
+        match self.level {
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx512 => unsafe { self.occluded_each_avx512(rays, out) },
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => unsafe { self.occluded_each_avx2(rays, out) },
+            _ => self.occluded_each_portable(rays, out),
         }
     }
 
     // A copy of each traversal per level and per kind of BVH (instances or
     // not, quantized nodes or not, triangles kept as lanes or gathered):
-    // what the BVH holds is decided here once per ray, not at every node
-    // or leaf, and the code of what it lacks is compiled out.
+    // what the BVH holds is decided here once per call, not at every ray,
+    // node or leaf, and the code of what it lacks is compiled out. Each copy
+    // is compiled once, in the functions below, never inlined: copies
+    // inlined into their callers (the stream traversals' fallback) made the
+    // traversal most of the crate's compile time. (An instanced group's
+    // traversal stays inlined into its top level's: as a call it cost 3.5 %
+    // on the rainbow's instanced droplets.)
     #[inline(always)]
-    fn closest_lanes<V: Lanes>(&self, ray: &Ray) -> Option<Hit> {
-        let mut best = Closest::new(ray.tmax, 0);
+    fn closest_each_lanes<V: Lanes>(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         match (self.instances.is_empty(), self.qnodes.is_empty(), self.keeps_packets()) {
-            (true, true, true) => self.closest::<false, false, true, V>(ray, &mut best),
-            (true, true, false) => self.closest::<false, false, false, V>(ray, &mut best),
-            (false, true, true) => self.closest::<true, false, true, V>(ray, &mut best),
-            (false, true, false) => self.closest::<true, false, false, V>(ray, &mut best),
-            (true, false, true) => self.closest::<false, true, true, V>(ray, &mut best),
-            (true, false, false) => self.closest::<false, true, false, V>(ray, &mut best),
-            (false, false, true) => self.closest::<true, true, true, V>(ray, &mut best),
-            (false, false, false) => self.closest::<true, true, false, V>(ray, &mut best),
+            (true, true, true) => self.closest_each_of::<false, false, true, V>(rays, hits),
+            (true, true, false) => self.closest_each_of::<false, false, false, V>(rays, hits),
+            (false, true, true) => self.closest_each_of::<true, false, true, V>(rays, hits),
+            (false, true, false) => self.closest_each_of::<true, false, false, V>(rays, hits),
+            (true, false, true) => self.closest_each_of::<false, true, true, V>(rays, hits),
+            (true, false, false) => self.closest_each_of::<false, true, false, V>(rays, hits),
+            (false, false, true) => self.closest_each_of::<true, true, true, V>(rays, hits),
+            (false, false, false) => self.closest_each_of::<true, true, false, V>(rays, hits),
         }
-        best.hit()
     }
 
     #[inline(always)]
-    fn occluded_lanes<V: Lanes>(&self, ray: &Ray) -> bool {
-        match (self.instances.is_empty(), self.qnodes.is_empty(), self.keeps_packets()) {
-            (true, true, true) => self.any_hit::<false, false, true, V>(ray),
-            (true, true, false) => self.any_hit::<false, false, false, V>(ray),
-            (false, true, true) => self.any_hit::<true, false, true, V>(ray),
-            (false, true, false) => self.any_hit::<true, false, false, V>(ray),
-            (true, false, true) => self.any_hit::<false, true, true, V>(ray),
-            (true, false, false) => self.any_hit::<false, true, false, V>(ray),
-            (false, false, true) => self.any_hit::<true, true, true, V>(ray),
-            (false, false, false) => self.any_hit::<true, true, false, V>(ray),
+    fn closest_each_of<const INSTANCES: bool, const Q: bool, const PACKED: bool, V: Lanes>(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+            let mut best = Closest::new(ray.tmax, 0);
+            self.closest::<INSTANCES, Q, PACKED, V>(ray, &mut best);
+            *hit = best.hit();
         }
+    }
+
+    #[inline(always)]
+    fn occluded_each_lanes<V: Lanes>(&self, rays: &[Ray], out: &mut [bool]) {
+        match (self.instances.is_empty(), self.qnodes.is_empty(), self.keeps_packets()) {
+            (true, true, true) => self.occluded_each_of::<false, false, true, V>(rays, out),
+            (true, true, false) => self.occluded_each_of::<false, false, false, V>(rays, out),
+            (false, true, true) => self.occluded_each_of::<true, false, true, V>(rays, out),
+            (false, true, false) => self.occluded_each_of::<true, false, false, V>(rays, out),
+            (true, false, true) => self.occluded_each_of::<false, true, true, V>(rays, out),
+            (true, false, false) => self.occluded_each_of::<false, true, false, V>(rays, out),
+            (false, false, true) => self.occluded_each_of::<true, true, true, V>(rays, out),
+            (false, false, false) => self.occluded_each_of::<true, true, false, V>(rays, out),
+        }
+    }
+
+    #[inline(always)]
+    fn occluded_each_of<const INSTANCES: bool, const Q: bool, const PACKED: bool, V: Lanes>(&self, rays: &[Ray], out: &mut [bool]) {
+        for (ray, o) in rays.iter().zip(out.iter_mut()) {
+            *o = self.any_hit::<INSTANCES, Q, PACKED, V>(ray);
+        }
+    }
+
+    #[inline(never)]
+    fn closest_each_portable(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        self.closest_each_lanes::<Portable>(rays, hits)
+    }
+
+    #[inline(never)]
+    fn occluded_each_portable(&self, rays: &[Ray], out: &mut [bool]) {
+        self.occluded_each_lanes::<Portable>(rays, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[inline(never)]
+    fn closest_each_avx2(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        self.closest_each_lanes::<Avx>(rays, hits)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    #[inline(never)]
+    fn occluded_each_avx2(&self, rays: &[Ray], out: &mut [bool]) {
+        self.occluded_each_lanes::<Avx>(rays, out)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512dq,avx512bw")]
+    #[inline(never)]
+    fn closest_each_avx512(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        self.closest_each_lanes::<Avx>(rays, hits)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512dq,avx512bw")]
+    #[inline(never)]
+    fn occluded_each_avx512(&self, rays: &[Ray], out: &mut [bool]) {
+        self.occluded_each_lanes::<Avx>(rays, out)
     }
 
     /// The traversal of an instanced group, whose node format and triangle
@@ -1269,39 +1342,6 @@ impl Accel {
         }
     }
 
-    #[inline(never)]
-    fn closest_portable(&self, ray: &Ray) -> Option<Hit> {
-        self.closest_lanes::<Portable>(ray)
-    }
-
-    #[inline(never)]
-    fn occluded_portable(&self, ray: &Ray) -> bool {
-        self.occluded_lanes::<Portable>(ray)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn closest_avx2(&self, ray: &Ray) -> Option<Hit> {
-        self.closest_lanes::<Avx>(ray)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    fn occluded_avx2(&self, ray: &Ray) -> bool {
-        self.occluded_lanes::<Avx>(ray)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512dq,avx512bw")]
-    fn closest_avx512(&self, ray: &Ray) -> Option<Hit> {
-        self.closest_lanes::<Avx>(ray)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma,avx512f,avx512vl,avx512dq,avx512bw")]
-    fn occluded_avx512(&self, ray: &Ray) -> bool {
-        self.occluded_lanes::<Avx>(ray)
-    }
 
     /// Closest hit, improving on `best` (which it starts from); `INSTANCES`:
     /// this BVH may hold instances (whose groups are traced by the `false`

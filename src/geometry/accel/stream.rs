@@ -135,11 +135,10 @@ impl Accel {
 
     #[inline(always)]
     fn closest_stream<V: Lanes>(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        // Instances and quantized nodes take the single-ray traversal.
+        // Instances and quantized nodes take the single-ray traversal (a
+        // call: its eight kinds of BVH are compiled once, not again here).
         if !self.instances.is_empty() || self.nodes.is_empty() || packets_off() {
-            for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
-                *hit = self.closest_lanes::<V>(ray);
-            }
+            self.intersect_each(rays, hits);
             return;
         }
         // The triangle storage decided once for the batch.
@@ -344,9 +343,7 @@ impl Accel {
         // Instances and quantized nodes (whose `nodes` is empty) take the
         // single-ray traversal.
         if !self.instances.is_empty() || self.nodes.is_empty() {
-            for (ray, o) in rays.iter().zip(out.iter_mut()) {
-                *o = self.occluded_lanes::<V>(ray);
-            }
+            self.occluded_each(rays, out);
             return;
         }
         if self.keeps_packets() { self.occluded_batch::<true, V>(rays, out) } else { self.occluded_batch::<false, V>(rays, out) }
