@@ -125,7 +125,7 @@ impl RawMesh {
 /// `vt`, `vn` and `f` (groups, materials, lines, points) are ignored.
 pub fn read_obj(path: &Path) -> Result<RawMesh, String> {
     let bytes = std::fs::read(path).map_err(|e| format!("cannot read OBJ file {}: {e}", path.display()))?;
-    let chunks = parse_obj_chunks(&String::from_utf8_lossy(&bytes));
+    let chunks = parse_obj_chunks(&bytes);
     // The file's bytes are not needed past the parse: free them before
     // the mesh is assembled (lower peak memory).
     drop(bytes);
@@ -178,6 +178,75 @@ struct FarIndex {
     rel: Option<i64>,
 }
 
+/// The tokens of an OBJ line up to a `#` comment, separated by whitespace.
+/// Lines of ASCII (nearly all) are split byte by byte on the six ASCII
+/// characters `char::is_whitespace` accepts; others go through `str`'s
+/// Unicode-aware split, so every line gives the same tokens either way.
+enum Tokens<'a> {
+    Ascii { line: &'a str, at: usize },
+    Unicode(std::str::SplitWhitespace<'a>),
+}
+
+impl<'a> Tokens<'a> {
+    fn of(line: &'a str) -> Self {
+        if line.is_ascii() {
+            Tokens::Ascii { line, at: 0 }
+        } else {
+            Tokens::Unicode(line.split('#').next().unwrap_or("").split_whitespace())
+        }
+    }
+}
+
+impl<'a> Iterator for Tokens<'a> {
+    type Item = &'a str;
+
+    #[inline]
+    fn next(&mut self) -> Option<&'a str> {
+        match self {
+            Tokens::Unicode(split) => split.next(),
+            Tokens::Ascii { line, at } => {
+                let b = line.as_bytes();
+                let space = |c: u8| matches!(c, b' ' | b'\t' | b'\n' | b'\x0b' | b'\x0c' | b'\r');
+                let mut i = *at;
+                while i < b.len() && space(b[i]) {
+                    i += 1;
+                }
+                let first = i;
+                while i < b.len() && !space(b[i]) && b[i] != b'#' {
+                    i += 1;
+                }
+                // At a comment the line ends.
+                *at = if i < b.len() && b[i] == b'#' { b.len() } else { i };
+                // ASCII: every byte is a char boundary.
+                (i > first).then(|| &line[first..i])
+            }
+        }
+    }
+}
+
+/// A face corner's parts, as `str::split('/')` gives them (the separator
+/// is one byte, so the cuts are char boundaries in any text).
+struct Slashes<'a>(Option<&'a str>);
+
+impl<'a> Iterator for Slashes<'a> {
+    type Item = &'a str;
+
+    #[inline]
+    fn next(&mut self) -> Option<&'a str> {
+        let s = self.0?;
+        match s.as_bytes().iter().position(|&b| b == b'/') {
+            Some(k) => {
+                self.0 = Some(&s[k + 1..]);
+                Some(&s[..k])
+            }
+            None => {
+                self.0 = None;
+                Some(s)
+            }
+        }
+    }
+}
+
 /// Parses `text` (whole lines); errors carry the line within it (1-based).
 fn parse_obj_chunk(text: &str) -> Result<ObjChunk, (usize, String)> {
     let mut c = ObjChunk { all_uv: true, all_n: true, ..Default::default() };
@@ -189,11 +258,16 @@ fn parse_obj_chunk(text: &str) -> Result<ObjChunk, (usize, String)> {
         }
         Ok(v)
     };
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        c.lines = line;
-        let content = raw.split('#').next().unwrap_or("");
-        let mut tokens = content.split_whitespace();
+    let bytes = text.as_bytes();
+    let mut start = 0;
+    while start < bytes.len() {
+        let end = memchr::memchr(b'\n', &bytes[start..]).map_or(bytes.len(), |k| start + k);
+        // A '\n' ends no multi-byte character: both cuts are char boundaries.
+        let raw = &text[start..end];
+        start = end + 1;
+        c.lines += 1;
+        let line = c.lines;
+        let mut tokens = Tokens::of(raw);
         let Some(keyword) = tokens.next() else { continue };
         match keyword {
             "v" => {
@@ -215,7 +289,7 @@ fn parse_obj_chunk(text: &str) -> Result<ObjChunk, (usize, String)> {
             "f" => {
                 let first = c.corners[0].len();
                 for tok in tokens {
-                    let mut parts = tok.split('/');
+                    let mut parts = Slashes(Some(tok));
                     let index = |s: Option<&str>, what: &str| -> Result<Option<i64>, (usize, String)> {
                         match s {
                             None | Some("") => Ok(None),
@@ -285,16 +359,17 @@ fn parse_obj_chunk(text: &str) -> Result<ObjChunk, (usize, String)> {
 /// Large files are cut at line ends into pieces parsed in parallel; the
 /// result (and the first error, by line) is the same as reading it in one go.
 pub fn parse_obj(text: &str) -> Result<RawMesh, (usize, String)> {
-    parse_obj_chunks(text).and_then(assemble_obj)
+    parse_obj_chunks(text.as_bytes()).and_then(assemble_obj)
 }
 
-/// The first half of [`parse_obj`]: the text's pieces parsed (in parallel),
-/// each with the number of lines before it.
-fn parse_obj_chunks(text: &str) -> Result<Vec<(usize, ObjChunk)>, (usize, String)> {
+/// The first half of [`parse_obj`]: the file's pieces parsed (in parallel),
+/// each with the number of lines before it. Text that is not UTF-8 is read
+/// as `String::from_utf8_lossy` gives it (piece by piece: cut after a
+/// newline, the pieces convert as the whole would).
+fn parse_obj_chunks(bytes: &[u8]) -> Result<Vec<(usize, ObjChunk)>, (usize, String)> {
     use rayon::prelude::*;
     // Pieces of about 1 MiB, cut after a newline.
     const PIECE: usize = 1 << 20;
-    let bytes = text.as_bytes();
     let mut cuts = vec![0];
     while let Some(&last) = cuts.last() {
         if last >= bytes.len() {
@@ -304,16 +379,22 @@ fn parse_obj_chunks(text: &str) -> Result<Vec<(usize, ObjChunk)>, (usize, String
         let cut = bytes[target..].iter().position(|&b| b == b'\n').map_or(bytes.len(), |i| target + i + 1);
         cuts.push(cut);
     }
-    let pieces: Vec<&str> = cuts.windows(2).map(|w| &text[w[0]..w[1]]).collect();
-    let parsed: Vec<Result<ObjChunk, (usize, String)>> = pieces.par_iter().map(|p| parse_obj_chunk(p)).collect();
+    let pieces: Vec<&[u8]> = cuts.windows(2).map(|w| &bytes[w[0]..w[1]]).collect();
+    let parsed: Vec<Result<ObjChunk, (usize, String)>> = pieces
+        .par_iter()
+        .map(|p| match std::str::from_utf8(p) {
+            Ok(text) => parse_obj_chunk(text),
+            Err(_) => parse_obj_chunk(&String::from_utf8_lossy(p)),
+        })
+        .collect();
     // Lines before each piece: a piece that ends with a newline has exactly
-    // `lines` lines; the last one may end without.
+    // `lines` lines (the last one may end without; nothing follows it).
     let mut chunks = Vec::with_capacity(parsed.len());
     let mut line0 = 0;
-    for (r, p) in parsed.into_iter().zip(&pieces) {
+    for r in parsed {
         match r {
             Ok(c) => {
-                let n = p.bytes().filter(|&b| b == b'\n').count();
+                let n = c.lines;
                 chunks.push((line0, c));
                 line0 += n;
             }
@@ -321,7 +402,7 @@ fn parse_obj_chunks(text: &str) -> Result<Vec<(usize, ObjChunk)>, (usize, String
         }
     }
     if chunks.iter().all(|(_, c)| c.face_end.is_empty()) {
-        return Err((text.lines().count().max(1), "the mesh has no faces".into()));
+        return Err((String::from_utf8_lossy(bytes).lines().count().max(1), "the mesh has no faces".into()));
     }
     Ok(chunks)
 }
@@ -1004,6 +1085,26 @@ mod tests {
             }
         }
         assert_eq!(parse_obj(&(mid + "v 1 2 oops\n")).unwrap_err().0, lines / 2 + 2);
+    }
+
+    /// Lines are split as `str::split_whitespace` splits them, whether of
+    /// ASCII (the byte-wise split: tabs, vertical tabs, form feeds, `\r`)
+    /// or not (a no-break space separates too); a `#` ends a line even
+    /// inside a token; bytes that are not UTF-8 read as U+FFFD, in a
+    /// comment harmlessly, in a number as an error naming the line.
+    #[test]
+    fn obj_tokens_as_str_splits_them() {
+        let text = "v 0 0 0\nv\t1\x0b0\x0c0\r\nv\u{a0}0 1 0 # apex\nv 1 1 0#x\nf 1 2 3 4\n";
+        let m = parse_obj(text).unwrap();
+        assert_eq!(m.positions, vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(1.0, 1.0, 0.0)]);
+        assert_eq!(m.triangles.len(), 2);
+        let read = |b: &[u8]| parse_obj_chunks(b).and_then(assemble_obj);
+        let mut bytes = b"# caf\xe9 \xff\n".to_vec();
+        bytes.extend_from_slice(text.as_bytes());
+        assert_eq!(read(&bytes).unwrap().positions.len(), 4);
+        let e = read(b"v 0 0 0\nv 1 0 0\nv 0 1\xe9 0\nf 1 2 3\n").unwrap_err();
+        assert_eq!(e.0, 3);
+        assert!(e.1.contains('\u{fffd}'), "{}", e.1);
     }
 
     /// Every form a face index is kept in while the pieces are parsed:
