@@ -334,54 +334,35 @@ impl Mesh {
     pub fn reorder(&mut self, order: &[u32]) {
         let n = self.triangles.len();
         assert_eq!(order.len(), n, "a triangle order must list every triangle");
-        // Vertex renumbering by first use; `u32::MAX` = not yet used. The
-        // new buffers are collected straight into their shared arrays (one
+        // Vertex renumbering by first use; `u32::MAX` = not yet used.
+        // `old_of`, its inverse, grows as vertices are numbered. The new
+        // buffers are collected straight into their shared arrays (one
         // allocation each, no copy), and each old one is freed as soon as
         // it is replaced: this runs after the BVH build, and must not raise
         // the load's peak memory.
         let n_verts = self.positions.len();
         let mut new_of = vec![u32::MAX; n_verts];
-        let mut next = 0u32;
+        let mut old_of = Vec::with_capacity(n_verts);
         let triangles: Arc<[[u32; 3]]> = order
             .iter()
             .map(|&t| {
                 self.triangles[t as usize].map(|v| {
                     let slot = &mut new_of[v as usize];
                     if *slot == u32::MAX {
-                        *slot = next;
-                        next += 1;
+                        *slot = old_of.len() as u32;
+                        old_of.push(v);
                     }
                     *slot
                 })
             })
             .collect();
         self.triangles = Shared(triangles);
-        // Unused vertices last, in their order; then the inverse map.
-        for slot in new_of.iter_mut().filter(|s| **s == u32::MAX) {
-            *slot = next;
-            next += 1;
+        // Unused vertices last, in their order.
+        if old_of.len() < n_verts {
+            old_of.extend((0..n_verts as u32).filter(|&v| new_of[v as usize] == u32::MAX));
         }
-        debug_assert_eq!(next as usize, n_verts);
-        let mut old_of = new_of;
-        {
-            // In place: new_of → old_of, following each cycle once.
-            let mut done = vec![false; n_verts];
-            for start in 0..n_verts {
-                if done[start] {
-                    continue;
-                }
-                // Along the cycle start → new_of[start] → …, set old_of[new_of[v]] = v.
-                let mut v = start;
-                let mut target = old_of[v] as usize;
-                while !done[target] {
-                    done[target] = true;
-                    let after = old_of[target] as usize;
-                    old_of[target] = v as u32;
-                    v = target;
-                    target = after;
-                }
-            }
-        }
+        drop(new_of);
+        debug_assert_eq!(old_of.len(), n_verts);
         // The vertex gathers in parallel (each the same values as in order).
         use rayon::prelude::*;
         let positions = &self.positions;

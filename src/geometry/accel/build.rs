@@ -256,36 +256,80 @@ fn build_rec(items: &mut [Item], sum: Summary, offset: usize, depth: u32, max_le
 }
 
 /// Exact SAH: sort by centroid on each axis and sweep. Leaves `items`
-/// partitioned by the best split found.
+/// (at most `SWEEP_MAX`) sorted along the axis of the best split found.
 fn sweep_split(items: &mut [Item], parent_area: f32) -> Option<Split> {
     let n = items.len();
     let inv_area = 1.0 / parent_area.max(f32::MIN_POSITIVE);
-    let mut best: Option<(Split, usize)> = None;
-    let mut right_cost = vec![0.0f32; n];
-    for axis in 0..3 {
-        items.sort_unstable_by(|a, b| (a.lo[axis] + a.hi[axis]).total_cmp(&(b.lo[axis] + b.hi[axis])).then(a.id.cmp(&b.id)));
-        // right_cost[i]: area × units of items[i..].
+    let mut best: Option<(f32, usize, usize)> = None; // cost, axis, items left of the split
+    let mut right_cost = [0.0f32; SWEEP_MAX];
+    // Per axis, the items' positions in centroid order: indices sorted by
+    // a key, not the 28-byte items by a comparison.
+    let mut order = [[0u8; SWEEP_MAX]; 3];
+    for (axis, order) in order.iter_mut().enumerate() {
+        let mut keys = [0u64; SWEEP_MAX];
+        for (key, it) in keys.iter_mut().zip(items.iter()) {
+            *key = sweep_key(it, axis);
+        }
+        let order = &mut order[..n];
+        for (i, o) in order.iter_mut().enumerate() {
+            *o = i as u8;
+        }
+        order.sort_unstable_by_key(|&i| keys[i as usize]);
+        let item = |i: usize| &items[order[i] as usize];
+        // right_cost[i]: area × units of the items from the i-th on.
         let (mut b, mut t) = (Aabb::EMPTY, 0);
         for i in (1..n).rev() {
-            b = b.union(items[i].bounds());
-            t += items[i].tri() as usize;
+            b = b.union(item(i).bounds());
+            t += item(i).tri() as usize;
             right_cost[i] = b.half_area() * units(t, n - i - t);
         }
         let (mut b, mut t) = (Aabb::EMPTY, 0);
         for i in 1..n {
-            b = b.union(items[i - 1].bounds());
-            t += items[i - 1].tri() as usize;
+            b = b.union(item(i - 1).bounds());
+            t += item(i - 1).tri() as usize;
             let cost = COST_TRAVERSE + COST_UNIT * (b.half_area() * units(t, i - t) + right_cost[i]) * inv_area;
-            if best.as_ref().is_none_or(|(s, _)| cost < s.cost) {
-                best = Some((Split { cost, left: i, sides: None }, axis));
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, i));
             }
         }
     }
-    let (split, axis) = best?;
-    if axis != 2 {
-        items.sort_unstable_by(|a, b| (a.lo[axis] + a.hi[axis]).total_cmp(&(b.lo[axis] + b.hi[axis])).then(a.id.cmp(&b.id)));
+    let (cost, axis, left) = best?;
+    let mut sorted = [items[0]; SWEEP_MAX];
+    for (s, &o) in sorted.iter_mut().zip(&order[axis][..n]) {
+        *s = items[o as usize];
     }
-    Some(split)
+    items.copy_from_slice(&sorted[..n]);
+    Some(Split { cost, left, sides: None })
+}
+
+/// An item's place along `axis` as one integer: its centroid (the sum of
+/// its bounds, as `f32::total_cmp` orders it), then its id (unique), so
+/// that the order is total and independent of the items' input order.
+#[inline(always)]
+fn sweep_key(it: &Item, axis: usize) -> u64 {
+    let bits = (it.lo[axis] + it.hi[axis]).to_bits() as i32;
+    // total_cmp's map to a signed order, then to an unsigned one.
+    let ordered = (bits ^ (((bits >> 31) as u32) >> 1) as i32) as u32 ^ 0x8000_0000;
+    (ordered as u64) << 32 | it.id as u64
+}
+
+/// The bins of the three axes: boxes, triangles and items.
+#[derive(Clone, Copy)]
+struct Bins {
+    bb: [[Aabb; BINS]; 3],
+    tri: [[usize; BINS]; 3],
+    cnt: [[usize; BINS]; 3],
+}
+
+impl Bins {
+    const EMPTY: Bins = Bins { bb: [[Aabb::EMPTY; BINS]; 3], tri: [[0; BINS]; 3], cnt: [[0; BINS]; 3] };
+}
+
+/// The bin of a centroid at `x` bins from the low end (an `i32`
+/// conversion: fewer instructions than to `usize`, same bins).
+#[inline(always)]
+fn bin_index(x: f32) -> usize {
+    (x as i32).clamp(0, BINS as i32 - 1) as usize
 }
 
 /// Binned SAH over the centroid bounds; partitions `items` by the best split.
@@ -295,17 +339,36 @@ fn binned_split(items: &mut [Item], parent_area: f32, cbounds: Aabb) -> Option<S
     let mut best: Option<(f32, usize, usize)> = None; // cost, axis, bins left of the split
     // One pass over the items fills the bins of all three axes.
     let scale = Vec3A::select(ext.cmpgt(Vec3A::ZERO), Vec3A::splat(BINS as f32) / ext, Vec3A::ZERO);
-    let mut bb = [[Aabb::EMPTY; BINS]; 3];
-    let mut tri = [[0usize; BINS]; 3];
-    let mut cnt = [[0usize; BINS]; 3];
-    for it in items.iter() {
+    // Two sets of bins, for the even and the odd items: neighbours in a
+    // coherent input mostly fall into the same bins, and each update would
+    // wait on the one before. Merged after (unions and counts: exact, so
+    // the same bits as one set).
+    let mut sets = [Bins::EMPTY; 2];
+    let add = |bins: &mut Bins, it: &Item| {
         let b = it.bounds();
         let k = ((b.centroid() - cbounds.lo) * scale).to_array();
         for axis in 0..3 {
-            let k = (k[axis] as usize).min(BINS - 1);
-            bb[axis][k] = bb[axis][k].union(b);
-            cnt[axis][k] += 1;
-            tri[axis][k] += it.tri() as usize;
+            let k = bin_index(k[axis]);
+            bins.bb[axis][k] = bins.bb[axis][k].union(b);
+            bins.cnt[axis][k] += 1;
+            bins.tri[axis][k] += it.tri() as usize;
+        }
+    };
+    let [even, odd] = &mut sets;
+    let mut pairs = items.chunks_exact(2);
+    for pair in &mut pairs {
+        add(even, &pair[0]);
+        add(odd, &pair[1]);
+    }
+    if let [last] = pairs.remainder() {
+        add(even, last);
+    }
+    let (bb, tri, cnt) = (&mut even.bb, &mut even.tri, &mut even.cnt);
+    for axis in 0..3 {
+        for k in 0..BINS {
+            bb[axis][k] = bb[axis][k].union(odd.bb[axis][k]);
+            tri[axis][k] += odd.tri[axis][k];
+            cnt[axis][k] += odd.cnt[axis][k];
         }
     }
     for axis in 0..3 {
@@ -337,22 +400,61 @@ fn binned_split(items: &mut [Item], parent_area: f32, cbounds: Aabb) -> Option<S
     }
     let (cost, axis, k) = best?;
     let scale = BINS as f32 / ext[axis];
-    let bin_of = |c: f32| (((c - cbounds.lo[axis]) * scale) as usize).min(BINS - 1);
-    // In-place partition, gathering the two sides' summaries on the way.
-    let mut left = 0;
+    let bin_of = |c: f32| bin_index((c - cbounds.lo[axis]) * scale);
+    // In-place partition from both ends, gathering the two sides'
+    // summaries on the way: only the items on the wrong side move (in
+    // coherent input most are already on theirs).
+    let goes_left = |it: &Item| bin_of(it.centroid()[axis]) < k;
+    let (mut left, mut right) = (0, items.len());
     let (mut ls, mut rs) = (Summary::EMPTY, Summary::EMPTY);
-    for i in 0..items.len() {
-        let it = items[i];
-        if bin_of(it.centroid()[axis]) < k {
-            ls.add(&it);
-            items.swap(i, left);
+    loop {
+        while left < right && goes_left(&items[left]) {
+            ls.add(&items[left]);
             left += 1;
-        } else {
-            rs.add(&it);
         }
+        while left < right && !goes_left(&items[right - 1]) {
+            rs.add(&items[right - 1]);
+            right -= 1;
+        }
+        if left >= right {
+            break;
+        }
+        // items[left] goes right and items[right - 1] left.
+        items.swap(left, right - 1);
+        ls.add(&items[left]);
+        rs.add(&items[right - 1]);
+        left += 1;
+        right -= 1;
     }
     if left == 0 || left == items.len() {
         return None;
     }
     Some(Split { cost, left, sides: Some([ls, rs]) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The sweep's integer keys order items as the comparison they stand
+    /// for: centroid sums by `total_cmp` (negative, ±0, ties), then id.
+    #[test]
+    fn sweep_keys_order_as_total_cmp_then_id() {
+        let values = [-3.5f32, -1.0, -0.0, 0.0, 1e-30, 0.25, 0.25, 2.0, f32::MAX, -f32::MAX, 7.0];
+        let mut items = vec![];
+        for (i, &v) in values.iter().enumerate() {
+            for (j, &w) in values.iter().enumerate().step_by(3) {
+                let id = (i * values.len() + j) as u32 ^ 0x55;
+                items.push(Item::new(Aabb { lo: Vec3A::new(v, w, 0.0), hi: Vec3A::new(v, w, 0.0) }, id));
+            }
+        }
+        for axis in 0..3 {
+            let mut by_cmp = items.clone();
+            by_cmp.sort_by(|a, b| (a.lo[axis] + a.hi[axis]).total_cmp(&(b.lo[axis] + b.hi[axis])).then(a.id.cmp(&b.id)));
+            let mut by_key = items.clone();
+            by_key.sort_by_key(|it| sweep_key(it, axis));
+            let ids = |v: &[Item]| v.iter().map(|it| it.id).collect::<Vec<_>>();
+            assert_eq!(ids(&by_cmp), ids(&by_key), "axis {axis}");
+        }
+    }
 }
