@@ -139,7 +139,6 @@ const DIRECT: u32 = 1 << 30;
 /// The largest `first` of a `DIRECT` leaf.
 const DIRECT_FIRST: u32 = (1 << 27) - 1;
 
-
 /// A leaf: triangles `tris[tri_start..tri_end]` (and the same lanes of
 /// `Accel::lanes` when the BVH keeps them), then `others[other_start..other_end]`.
 #[derive(Clone, Copy, Debug)]
@@ -1341,7 +1340,6 @@ impl Accel {
             (false, false) => self.any_hit::<false, true, false, V>(ray),
         }
     }
-
 
     /// Closest hit, improving on `best` (which it starts from); `INSTANCES`:
     /// this BVH may hold instances (whose groups are traced by the `false`
