@@ -627,6 +627,11 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
         };
         let Some((index, pmf, ux)) = selected else { continue };
         let Some(light) = lights.get(index) else { continue };
+        // Behind a rectangle light nothing of it is lit (`Rectangle::behind`):
+        // whichever way it were sampled, no contribution and no shadow ray.
+        if light.rect.is_some_and(|r| r.behind(si.p)) {
+            continue;
+        }
         if kernel_samples(light, si.p) {
             let (a, b, c, tri_n, ux) = if light.triangles.is_empty() {
                 let Some(mesh) = light_mesh(scene, index) else { continue };
