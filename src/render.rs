@@ -861,10 +861,16 @@ fn render_camera<S: Spectrum>(
         }
         out
     };
+    // Path reuse groups pixels within a tile's row: wider tiles, so that
+    // few groups are cut short by a tile's edge.
+    let tile_w = match &scene.integrator {
+        Integrator::Path(pt) if crate::integrator::path_reuse::applies::<S>(scene, pt.reuse_pixels, pt.rr_depth) => TILE * 4,
+        _ => TILE,
+    };
     let mut tiles = vec![];
     for ty in (ry..ry + rh).step_by(TILE as usize) {
-        for tx in (rx..rx + rw).step_by(TILE as usize) {
-            let (tw, th) = (TILE.min(rx + rw - tx), TILE.min(ry + rh - ty));
+        for tx in (rx..rx + rw).step_by(tile_w as usize) {
+            let (tw, th) = (tile_w.min(rx + rw - tx), TILE.min(ry + rh - ty));
             if (ty..ty + th).any(|y| !runs(y, tx..tx + tw).is_empty()) {
                 tiles.push((tx, ty, tw, th));
             }

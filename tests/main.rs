@@ -24,6 +24,7 @@ mod hardening;
 mod light_selection;
 mod media;
 mod mitsuba_reference;
+mod path_reuse;
 mod path_split;
 mod polarization;
 mod polarized_materials;

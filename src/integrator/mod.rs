@@ -10,6 +10,7 @@ pub mod direct;
 pub mod guiding;
 pub mod kernels;
 pub mod path;
+pub mod path_reuse;
 pub mod path_split;
 pub mod ptracer;
 pub mod sphere_connection;

@@ -42,6 +42,9 @@ pub struct PathTracer {
     pub bsdf_samples: u32,
     /// Path guiding ([`crate::integrator::guiding`]); None = off.
     pub guiding: Option<crate::integrator::guiding::Guiding>,
+    /// Path reuse across this many neighbouring pixels
+    /// ([`crate::integrator::path_reuse`]); 1 = none.
+    pub reuse_pixels: u32,
 }
 
 impl PathTracer {

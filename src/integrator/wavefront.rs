@@ -85,6 +85,7 @@
 //! request lets finish.
 
 use super::path::PathTracer;
+use super::path_reuse::{self, ReuseBuffers, ReuseLane};
 use crate::bsdf::{BsdfContext, Lobe};
 use super::kernels::{self, lane_vec3, AreaChunk, DiffuseChunk, LANES};
 use crate::bsdf::Bsdf;
@@ -234,6 +235,11 @@ pub struct Queues<S: Spectrum> {
     /// addresses and counts): a worker's queues serve one render, this
     /// guards the rule.
     tables_of: [usize; 4],
+    /// Path reuse ([`path_reuse`]): per path its record, the paths that
+    /// traced a second ray, and the buffers of the combination.
+    reuse: Vec<ReuseLane<S>>,
+    reached: Vec<u32>,
+    reuse_buffers: ReuseBuffers,
 }
 
 /// A path's previous vertex: its point, shading normal, the density of the
@@ -342,6 +348,9 @@ impl<S: Spectrum> Default for Queues<S> {
             one_emitter: None,
             shape_nee: vec![],
             tables_of: [0; 4],
+            reuse: vec![],
+            reached: vec![],
+            reuse_buffers: ReuseBuffers::default(),
         }
     }
 }
@@ -363,24 +372,48 @@ pub fn render_row<S: Spectrum>(
     let mut bad = 0;
     let size = batch_size();
     let mut batch = Vec::with_capacity(size);
+    if path_reuse::applies::<S>(scene, pt.reuse_pixels, pt.rr_depth) {
+        // Paths in groups (a sample index, consecutive pixels), a batch
+        // holding whole groups.
+        let n = pt.reuse_pixels;
+        let ox = cam.crop_offset[0];
+        let mut groups = Vec::new();
+        for i in samples {
+            path_reuse::for_each_group(xs.start + ox..xs.end + ox, i, n, |first, end| {
+                if batch.len() + (end - first) as usize > size.max(n as usize) {
+                    bad += render_batch::<S>(scene, pt, y, &batch, &groups, cam, q, sink);
+                    batch.clear();
+                    groups.clear();
+                }
+                batch.extend((first - ox..end - ox).map(|x| (x, i)));
+                groups.push(end - first);
+            });
+        }
+        if !batch.is_empty() {
+            bad += render_batch::<S>(scene, pt, y, &batch, &groups, cam, q, sink);
+        }
+        return bad;
+    }
     for x in xs {
         for i in samples.clone() {
             batch.push((x, i));
             if batch.len() == size {
-                bad += render_batch::<S>(scene, pt, y, &batch, cam, q, sink);
+                bad += render_batch::<S>(scene, pt, y, &batch, &[], cam, q, sink);
                 batch.clear();
             }
         }
     }
     if !batch.is_empty() {
-        bad += render_batch::<S>(scene, pt, y, &batch, cam, q, sink);
+        bad += render_batch::<S>(scene, pt, y, &batch, &[], cam, q, sink);
     }
     bad
 }
 
 /// One batch: camera rays, rounds of bounces until no path is left, then
-/// the samples into the sink.
-fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u32, u32)], cam: &CameraSetup, q: &mut Queues<S>, sink: &mut Sink) -> u64 {
+/// the samples into the sink. `groups`: the lengths of the consecutive
+/// groups of `jobs` that reuse paths ([`path_reuse`]), or empty.
+#[allow(clippy::too_many_arguments)]
+fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u32, u32)], groups: &[u32], cam: &CameraSetup, q: &mut Queues<S>, sink: &mut Sink) -> u64 {
     q.sampler.clear();
     q.wl.clear();
     q.pos.clear();
@@ -451,16 +484,38 @@ fn render_batch<S: Spectrum>(scene: &Scene, pt: &PathTracer, y: u32, jobs: &[(u3
     q.live.clear();
     q.live.extend(0..n as u32);
 
+    let reuse = !groups.is_empty();
+    if reuse {
+        q.reuse.clear();
+        q.reuse.resize(n, ReuseLane::default());
+        q.reached.clear();
+    }
     let mut depth = 0u32;
     while !q.live.is_empty() {
+        if reuse && depth == 1 {
+            q.reached.clear();
+            q.reached.extend_from_slice(&q.live);
+        }
         trace_extension(scene, pt, depth, q);
         shade_hits(scene, pt, depth, q);
+        if reuse && depth == 0 {
+            path_reuse::record_first(scene, &q.live, &q.si, &q.throughput, &q.wl, &mut q.reuse);
+        }
+        if reuse && depth == 1 {
+            path_reuse::record_second(scene, &q.reached, &q.hit, &q.si, &q.result, &mut q.reuse);
+        }
         if q.live.is_empty() {
             break;
         }
         next_event(scene, q);
         sample_bsdfs(scene, pt, depth, q);
+        if reuse && depth == 0 {
+            path_reuse::record_bounce(&q.live, &q.throughput, &mut q.reuse);
+        }
         depth += 1;
+    }
+    if reuse {
+        path_reuse::combine(scene, groups, &q.reuse, &mut q.result, &mut q.reuse_buffers);
     }
 
     let mut bad = 0;

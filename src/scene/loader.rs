@@ -420,7 +420,7 @@ impl Loader {
             sampler.seed = seed;
         }
         let integrator =
-            integrator.unwrap_or(Integrator::Path(PathTracer { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false, emitter_samples: 1, bsdf_samples: 1, guiding: None }));
+            integrator.unwrap_or(Integrator::Path(PathTracer { max_depth: u32::MAX, rr_depth: 5, hide_emitters: false, emitter_samples: 1, bsdf_samples: 1, guiding: None, reuse_pixels: 1 }));
         if let Integrator::Sppm(sppm) = &integrator {
             if sppm.max_passes > 0 && options.spp.is_none() {
                 sampler.set_sample_count(sppm.max_passes);
@@ -1425,6 +1425,7 @@ impl Loader {
                         let fraction = props.float_checked("bsdf_sampling_fraction", 0.5, |v| v > 0.0 && v <= 1.0, "in (0, 1]")?;
                         props.bool("guiding", false)?.then(|| crate::integrator::guiding::Guiding::new(spp, fraction))
                     },
+                    reuse_pixels: props.int_checked("reuse_pixels", 1, |v| (1..=crate::integrator::path_reuse::MAX_GROUP as i64).contains(&v), "between 1 and 64")? as u32,
                 })
             }
             "ptracer" => {
