@@ -118,7 +118,6 @@ fn quadtree_samples_follow_the_pdf() {
 }
 
 use crate::common::*;
-use snell::film::Image;
 use snell::spectrum::Rgb;
 use snell::{RenderOptions, Scene};
 use std::path::Path;
@@ -126,10 +125,6 @@ use std::path::Path;
 /// `scene`'s text with `extra` XML inside its `path` integrator.
 fn guided(spp: u32, fraction: &str) -> String {
     format!(r#"<boolean name="guiding" value="true"/><integer name="guiding_spp" value="{spp}"/><float name="bsdf_sampling_fraction" value="{fraction}"/>"#)
-}
-
-fn bits(image: &Image) -> Vec<u32> {
-    image.pixels.iter().flat_map(|p| p.0).map(f32::to_bits).collect()
 }
 
 fn load(path: &Path, text: &str, p: &[(&str, &str)]) -> Scene {
@@ -170,21 +165,21 @@ fn guided_is_exact_across_threads_and_passes() {
         let opts = RenderOptions { threads, passes, ..RenderOptions::default() };
         snell::render::render_passes::<Rgb>(&scene, &opts, &mut |_| {}).expect("render").0
     };
-    let want = bits(&render(1, 1));
+    let want = pixel_bits(&render(1, 1));
     assert!(want.iter().filter(|&&b| f32::from_bits(b) > 0.0).count() > want.len() / 2);
     for (threads, passes) in [(2, 1), (3, 3), (2, 4)] {
-        assert!(bits(&render(threads, passes)) == want, "{threads} threads, {passes} passes differ");
+        assert!(pixel_bits(&render(threads, passes)) == want, "{threads} threads, {passes} passes differ");
     }
     // A second render of the same scene object reuses the frozen guide.
     let scene = load(&path, &text, &[("res", "40"), ("spp", "8")]);
     let opts = RenderOptions { threads: 2, ..RenderOptions::default() };
     let a = snell::render::render_passes::<Rgb>(&scene, &opts, &mut |_| {}).expect("render").0;
     let b = snell::render::render_passes::<Rgb>(&scene, &opts, &mut |_| {}).expect("render").0;
-    assert!(bits(&a) == want && bits(&b) == want);
+    assert!(pixel_bits(&a) == want && pixel_bits(&b) == want);
     // And the guide changes the image (it is used).
     let plain = load(&path, &std::fs::read_to_string(&path).expect("scene").replace(r#"<sampler type="independent""#, r#"<sampler type="zsobol""#), &[("res", "40"), ("spp", "8")]);
     let p = snell::render::render_passes::<Rgb>(&plain, &opts, &mut |_| {}).expect("render").0;
-    assert!(bits(&p) != want, "the guided image equals the unguided one");
+    assert!(pixel_bits(&p) != want, "the guided image equals the unguided one");
 }
 
 /// With `bsdf_sampling_fraction` 1 the guide is never sampled and the

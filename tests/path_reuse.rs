@@ -4,7 +4,6 @@
 //! and images bit-identical across thread counts and pass splits.
 
 use crate::common::*;
-use snell::film::Image;
 use snell::spectrum::Rgb;
 use snell::{RenderOptions, Scene};
 
@@ -41,16 +40,7 @@ fn relmse_with(n: Option<u32>) -> f64 {
     let p = params(&[("res", "64")]);
     let reference = average(&render_passes(&scene, None, p.clone(), 8, 256));
     let text = n.map(|n| with_path_props(&scene, &reuse(n)));
-    let imgs = render_passes(&scene, text.as_deref(), p, 4, 8);
-    let mut e = 0.0f64;
-    for img in &imgs {
-        for (a, r) in img.pixels.iter().zip(&reference.pixels) {
-            for c in 0..3 {
-                e += ((a[c] - r[c]) as f64).powi(2) / ((r[c] as f64).powi(2) + 1e-2);
-            }
-        }
-    }
-    e / imgs.len() as f64
+    relmse_sum(&render_passes(&scene, text.as_deref(), p, 4, 8), &reference)
 }
 
 /// Reuse cuts the indirect noise per camera ray: on the Cornell box (most
@@ -64,31 +54,18 @@ fn reuse_cuts_the_noise_per_camera_ray() {
     assert!(sixteen < 0.45 * plain, "reuse_pixels 16: relMSE {sixteen:.3e} not well below the plain {plain:.3e}");
 }
 
-fn bits(image: &Image) -> Vec<u32> {
-    image.pixels.iter().flat_map(|p| p.0).map(f32::to_bits).collect()
-}
-
 /// The groups depend on the sample index and the pixel only: the image is
-/// the same, bit for bit, for any thread count and pass split.
+/// the same, bit for bit, for any thread count and pass split; and reuse
+/// changed it (it is not silently off).
 #[test]
 fn reuse_is_exact_across_threads_and_passes() {
     let path = repo("scenes/cornell-box.xml");
     let text = with_path_props(&path, &reuse(3)).replace(r#"<sampler type="independent""#, r#"<sampler type="zsobol""#);
-    let options = snell::LoadOptions { params: params(&[("res", "40"), ("spp", "8")]), ..Default::default() };
-    let scene: Scene = snell::load_str(&path, &text, &options).unwrap_or_else(|e| panic!("{e}"));
-    let render = |threads, passes| {
-        let opts = RenderOptions { threads, passes, ..RenderOptions::default() };
-        snell::render::render_passes::<Rgb>(&scene, &opts, &mut |_| {}).expect("render").0
-    };
-    let want = bits(&render(1, 1));
-    assert!(want.iter().filter(|&&b| f32::from_bits(b) > 0.0).count() > want.len() / 2);
-    for (threads, passes) in [(2, 1), (3, 3), (2, 4)] {
-        assert!(bits(&render(threads, passes)) == want, "{threads} threads, {passes} passes differ");
-    }
-    // And reuse changed the image (it is not silently off).
-    let plain: Scene = snell::load_str(&path, &text.replace(&reuse(3), ""), &options).unwrap_or_else(|e| panic!("{e}"));
+    let p = params(&[("res", "40"), ("spp", "8")]);
+    let want = assert_exact_across_threads_and_passes(&path, &text, p.clone());
+    let plain: Scene = snell::load_str(&path, &text.replace(&reuse(3), ""), &snell::LoadOptions { params: p, ..Default::default() }).unwrap_or_else(|e| panic!("{e}"));
     let opts = RenderOptions { threads: 1, passes: 1, ..RenderOptions::default() };
-    assert!(bits(&snell::render::render_passes::<Rgb>(&plain, &opts, &mut |_| {}).expect("render").0) != want);
+    assert!(pixel_bits(&snell::render::render_passes::<Rgb>(&plain, &opts, &mut |_| {}).expect("render").0) != want);
 }
 
 /// The parameter is checked like the others.

@@ -4,9 +4,6 @@
 //! images bit-identical across thread counts and pass splits.
 
 use crate::common::*;
-use snell::film::Image;
-use snell::spectrum::Rgb;
-use snell::{RenderOptions, Scene};
 
 /// `scene`'s text with `extra` XML inside its `path` integrator.
 fn split(m: u32, n: u32) -> String {
@@ -46,25 +43,10 @@ fn continuations_cut_the_noise_per_camera_ray() {
     let scene = repo("scenes/cornell-box.xml");
     let p = params(&[("res", "32")]);
     let reference = average(&render_passes(&scene, None, p.clone(), 8, 256));
-    let err = |text: Option<&str>| {
-        let imgs = render_passes(&scene, text, p.clone(), 4, 8);
-        let mut e = 0.0f64;
-        for img in &imgs {
-            for (a, r) in img.pixels.iter().zip(&reference.pixels) {
-                for c in 0..3 {
-                    e += ((a[c] - r[c]) as f64).powi(2) / ((r[c] as f64).powi(2) + 1e-2);
-                }
-            }
-        }
-        e / imgs.len() as f64
-    };
+    let err = |text: Option<&str>| relmse_sum(&render_passes(&scene, text, p.clone(), 4, 8), &reference);
     let (plain, four) = (err(None), err(Some(&with_path_props(&scene, &split(1, 4)))));
     eprintln!("relMSE sum: plain {plain:.4e}, bsdf_samples 4 {four:.4e} ({:.2}x)", four / plain);
     assert!(four < 0.6 * plain, "bsdf_samples 4: relMSE {four:.3e} not well below the plain {plain:.3e}");
-}
-
-fn bits(image: &Image) -> Vec<u32> {
-    image.pixels.iter().flat_map(|p| p.0).map(f32::to_bits).collect()
 }
 
 /// Each continuation draws from its own block of sampler dimensions: the
@@ -73,17 +55,7 @@ fn bits(image: &Image) -> Vec<u32> {
 fn split_is_exact_across_threads_and_passes() {
     let path = repo("scenes/cornell-box.xml");
     let text = with_path_props(&path, &split(2, 3)).replace(r#"<sampler type="independent""#, r#"<sampler type="zsobol""#);
-    let options = snell::LoadOptions { params: params(&[("res", "40"), ("spp", "8")]), ..Default::default() };
-    let scene: Scene = snell::load_str(&path, &text, &options).unwrap_or_else(|e| panic!("{e}"));
-    let render = |threads, passes| {
-        let opts = RenderOptions { threads, passes, ..RenderOptions::default() };
-        snell::render::render_passes::<Rgb>(&scene, &opts, &mut |_| {}).expect("render").0
-    };
-    let want = bits(&render(1, 1));
-    assert!(want.iter().filter(|&&b| f32::from_bits(b) > 0.0).count() > want.len() / 2);
-    for (threads, passes) in [(2, 1), (3, 3), (2, 4)] {
-        assert!(bits(&render(threads, passes)) == want, "{threads} threads, {passes} passes differ");
-    }
+    assert_exact_across_threads_and_passes(&path, &text, params(&[("res", "40"), ("spp", "8")]));
 }
 
 /// The new parameters are checked like the others.

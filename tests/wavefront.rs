@@ -23,10 +23,6 @@ fn load(path: &str, replace: &[(&str, &str)], list: &[(&str, &str)]) -> Scene {
     snell::load_str(&path, &text, &options).unwrap_or_else(|e| panic!("{e}"))
 }
 
-fn bits(image: &Image) -> Vec<u32> {
-    image.pixels.iter().flat_map(|p| p.0).map(f32::to_bits).collect()
-}
-
 fn render<S: Spectrum>(scene: &Scene, wavefront: bool, threads: usize, passes: u32) -> Image {
     let options = RenderOptions { threads, passes, wavefront: Some(wavefront), ..RenderOptions::default() };
     snell::render::render_passes::<S>(scene, &options, &mut |_| {}).expect("render").0
@@ -38,7 +34,7 @@ fn assert_same<S: Spectrum>(what: &str, scene: &Scene) {
     let batched = render::<S>(scene, true, 2, 1);
     let lit = scalar.pixels.iter().filter(|p| p.0.iter().any(|&c| c > 0.0)).count();
     assert!(lit > scalar.pixels.len() / 100, "{what}: only {lit} pixels lit");
-    let (a, b) = (bits(&scalar), bits(&batched));
+    let (a, b) = (pixel_bits(&scalar), pixel_bits(&batched));
     let differ = a.iter().zip(&b).filter(|(x, y)| x != y).count();
     assert!(differ == 0, "{what}: {differ} of {} values differ from the scalar path tracer", a.len());
 }
@@ -95,9 +91,9 @@ fn spectral_mode_and_dispersion_are_bit_identical_to_path() {
 #[test]
 fn wavefront_images_are_exact_across_threads_and_passes() {
     let scene = load("scenes/caustic-cornell-box.xml", &[], &[("res", "40"), ("spp", "6")]);
-    let want = bits(&render::<Rgb>(&scene, true, 1, 1));
+    let want = pixel_bits(&render::<Rgb>(&scene, true, 1, 1));
     for (threads, passes) in [(2, 1), (3, 3), (2, 2)] {
-        assert!(bits(&render::<Rgb>(&scene, true, threads, passes)) == want, "{threads} threads, {passes} passes");
+        assert!(pixel_bits(&render::<Rgb>(&scene, true, threads, passes)) == want, "{threads} threads, {passes} passes");
     }
 }
 

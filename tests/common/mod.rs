@@ -53,6 +53,43 @@ pub fn render_passes_as<S: snell::spectrum::Spectrum>(
         .collect()
 }
 
+/// The image's pixel values as bits, for bit-for-bit comparisons.
+pub fn pixel_bits(image: &Image) -> Vec<u32> {
+    image.pixels.iter().flat_map(|p| p.0).map(f32::to_bits).collect()
+}
+
+/// Loads `text` (the scene at `path`) with `params`, renders it with one
+/// thread in one pass, and asserts the same image, bit for bit, with 2
+/// threads, 3 threads in 3 passes and 2 threads in 4 passes; returns it.
+pub fn assert_exact_across_threads_and_passes(path: &Path, text: &str, params: HashMap<String, String>) -> Vec<u32> {
+    let options = LoadOptions { params, ..Default::default() };
+    let scene = snell::load_str(path, text, &options).unwrap_or_else(|e| panic!("{e}"));
+    let render = |threads, passes| {
+        let opts = RenderOptions { threads, passes, ..RenderOptions::default() };
+        pixel_bits(&snell::render::render_passes::<Rgb>(&scene, &opts, &mut |_| {}).expect("render").0)
+    };
+    let want = render(1, 1);
+    assert!(want.iter().filter(|&&b| f32::from_bits(b) > 0.0).count() > want.len() / 2, "mostly black");
+    for (threads, passes) in [(2, 1), (3, 3), (2, 4)] {
+        assert!(render(threads, passes) == want, "{threads} threads, {passes} passes differ");
+    }
+    want
+}
+
+/// The relMSE of each image against `reference`, summed over its pixels
+/// and channels (denominator r² + 0.01), averaged over the images.
+pub fn relmse_sum(images: &[Image], reference: &Image) -> f64 {
+    let mut e = 0.0f64;
+    for img in images {
+        for (a, r) in img.pixels.iter().zip(&reference.pixels) {
+            for c in 0..3 {
+                e += ((a[c] - r[c]) as f64).powi(2) / ((r[c] as f64).powi(2) + 1e-2);
+            }
+        }
+    }
+    e / images.len() as f64
+}
+
 pub fn mean(img: &Image) -> [f64; 3] {
     let mut m = [0.0f64; 3];
     for p in &img.pixels {
