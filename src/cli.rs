@@ -352,6 +352,11 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             say!("{w}");
         }
     }
+    if let crate::integrator::Integrator::Path(pt) = &scene.integrator {
+        if pt.reuse_pixels > 1 && !args.quiet && (args.mode != Mode::Rgb || pt.splits() || pt.guides() || scene.pass_through || pt.rr_depth < 2) {
+            say!("warning: reuse_pixels applies to path in the rgb mode without splitting, guiding, pass-through shapes or rr_depth 1; rendering without it");
+        }
+    }
     if scene.stokes_requested && !polarized && !args.quiet {
         say!("warning: the scene's stokes integrator writes S1–S3 only in a polarized mode (--mode rgb-polarized or spectral-polarized); writing the intensity image");
     }

@@ -364,3 +364,20 @@ fn adaptive_sampling() {
         assert!(e.contains(want), "{args:?}: {e}");
     }
 }
+
+/// `reuse_pixels` where it cannot apply (a spectral render) is said, not
+/// silently dropped; in RGB it renders without that warning.
+#[test]
+fn reuse_pixels_where_it_cannot_apply_is_a_warning() {
+    let (dir, scene) = setup("reuse-warning");
+    let text = SCENE.replacen(r#"<integrator type="path">"#, r#"<integrator type="path"><integer name="reuse_pixels" value="4"/>"#, 1);
+    assert_ne!(text, SCENE, "the test scene has no path integrator to extend");
+    std::fs::write(&scene, text).unwrap();
+    let out_exr = dir.join("out.exr");
+    let spectral = snell(&["render", s(&scene), "-o", s(&out_exr), "--mode", "spectral"], &dir);
+    assert_success(&spectral);
+    assert!(String::from_utf8_lossy(&spectral.stderr).contains("warning: reuse_pixels applies to path in the rgb mode"));
+    let rgb = snell(&["render", s(&scene), "-o", s(&out_exr)], &dir);
+    assert_success(&rgb);
+    assert!(!String::from_utf8_lossy(&rgb.stderr).contains("reuse_pixels"));
+}
