@@ -353,7 +353,7 @@ fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         }
     }
     if let crate::integrator::Integrator::Path(pt) = &scene.integrator {
-        if pt.reuse_pixels > 1 && !args.quiet && (args.mode != Mode::Rgb || pt.splits() || pt.guides() || scene.pass_through || pt.rr_depth < 2) {
+        if pt.reuse_pixels > 1 && !args.quiet && !crate::integrator::path_reuse::applies_to(&scene, pt, args.mode == Mode::Rgb) {
             say!("warning: reuse_pixels applies to path in the rgb mode without splitting, guiding, pass-through shapes or rr_depth 1; rendering without it");
         }
     }

@@ -864,7 +864,7 @@ fn render_camera<S: Spectrum>(
     // Path reuse groups pixels within a tile's row: wider tiles, so that
     // few groups are cut short by a tile's edge.
     let tile_w = match &scene.integrator {
-        Integrator::Path(pt) if crate::integrator::path_reuse::applies::<S>(scene, pt.reuse_pixels, pt.rr_depth) => TILE * 4,
+        Integrator::Path(pt) if crate::integrator::path_reuse::applies::<S>(scene, pt) => TILE * 4,
         _ => TILE,
     };
     let mut tiles = vec![];

@@ -45,7 +45,9 @@
 
 use crate::bsdf::Bsdf;
 use crate::math::INV_PI;
+use crate::geometry::ray::offset_origin;
 use crate::geometry::{Ray, SurfaceInteraction};
+use crate::integrator::path::PathTracer;
 use crate::math::SHADOW_EPSILON;
 use crate::math::rng::mix64;
 use crate::scene::Scene;
@@ -58,7 +60,7 @@ use glam::Vec3;
 pub struct ReuseLane<S: Spectrum> {
     /// The first vertex is a technique (see the module's text).
     pub technique: bool,
-    pub x: SurfaceInteraction,
+    pub x: FirstVertex,
     /// x's reflectance (its `diffuse` BSDF's, evaluated once).
     pub rho: S,
     /// Throughput arriving at x, and after x's bounce (arriving at y).
@@ -73,15 +75,31 @@ pub struct ReuseLane<S: Spectrum> {
     pub result_at_y: S,
 }
 
+/// What the combination reads of a first vertex: its point, geometric
+/// normal (for the shadow ray's offset) and shading normal (the cosine).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FirstVertex {
+    pub p: Vec3,
+    pub n: Vec3,
+    pub shading_n: Vec3,
+}
+
 impl<S: Spectrum> Default for ReuseLane<S> {
     fn default() -> Self {
-        ReuseLane { technique: false, x: SurfaceInteraction::EMPTY, rho: S::zero(), t_x: S::zero(), t_y: S::zero(), shareable: false, y_p: Vec3::ZERO, y_n: Vec3::ZERO, result_at_y: S::zero() }
+        ReuseLane { technique: false, x: FirstVertex::default(), rho: S::zero(), t_x: S::zero(), t_y: S::zero(), shareable: false, y_p: Vec3::ZERO, y_n: Vec3::ZERO, result_at_y: S::zero() }
     }
 }
 
-/// Whether a render of `scene` with these settings can reuse paths.
-pub fn applies<S: Spectrum>(scene: &Scene, reuse_pixels: u32, rr_depth: u32) -> bool {
-    reuse_pixels > 1 && !S::SPECTRAL && !S::POLARIZED && !scene.pass_through && rr_depth >= 2 && S::zero().to_channels4().is_some()
+/// Whether `pt` reuses paths in a render of `scene` whose paths carry RGB
+/// (`rgb`: not spectral, not polarized) — the one rule, also behind the
+/// command line's warning where it does not.
+pub fn applies_to(scene: &Scene, pt: &PathTracer, rgb: bool) -> bool {
+    pt.reuse_pixels > 1 && rgb && !scene.pass_through && pt.rr_depth >= 2 && !pt.splits() && !pt.guides()
+}
+
+/// [`applies_to`] for paths carrying the spectrum type `S`.
+pub fn applies<S: Spectrum>(scene: &Scene, pt: &PathTracer) -> bool {
+    applies_to(scene, pt, !S::SPECTRAL && !S::POLARIZED)
 }
 
 /// Where sample `index`'s groups start in a row: at the pixels x (full-film
@@ -120,7 +138,7 @@ pub fn record_first<S: Spectrum>(scene: &Scene, live: &[u32], si: &[SurfaceInter
         let (Some(r), Some(t)) = (rho.to_channels4(), throughput[i].to_channels4()) else { continue };
         if r[..3].iter().chain(&t[..3]).all(|&v| v > 0.0 && v.is_finite()) {
             lane.technique = true;
-            lane.x = *si;
+            lane.x = FirstVertex { p: si.p, n: si.n, shading_n: si.frame.n };
             lane.rho = rho;
             lane.t_x = throughput[i];
         }
@@ -164,6 +182,8 @@ pub struct ReuseBuffers {
     /// Per shadow ray: the technique member k, the shareable member j and
     /// p_k(y_j).
     pairs: Vec<(u32, u32, f32)>,
+    /// The techniques that see one second vertex, with their densities.
+    seen: Vec<(usize, f32)>,
 }
 
 /// The density (per unit area at y) with which the technique `x` (a
@@ -173,11 +193,11 @@ pub struct ReuseBuffers {
 /// also the pixel's own term: `Diffuse::eval` (ρ/π · cos θ_x) times the
 /// geometry term cos θ_y / r² is ρ times it. With the unit direction.
 #[inline]
-fn area_pdf(x: &SurfaceInteraction, y_p: Vec3, y_n: Vec3) -> (f32, Vec3) {
+fn area_pdf(x: &FirstVertex, y_p: Vec3, y_n: Vec3) -> (f32, Vec3) {
     let v = y_p - x.p;
     let d2 = v.length_squared();
     let d = v / d2.sqrt();
-    let (cos_x, cos_y) = (x.frame.n.dot(d), y_n.dot(-d));
+    let (cos_x, cos_y) = (x.shading_n.dot(d), y_n.dot(-d));
     if !(d2 > 0.0) || !(cos_y > 0.0) || !(cos_x > 0.0) {
         return (0.0, d);
     }
@@ -188,9 +208,9 @@ fn area_pdf(x: &SurfaceInteraction, y_p: Vec3, y_n: Vec3) -> (f32, Vec3) {
 /// A shadow ray from x to y (offset at both ends), `d` the unit direction
 /// from x's point to y's.
 #[inline]
-fn connection(x: &SurfaceInteraction, y_p: Vec3, y_n: Vec3, d: Vec3) -> Option<Ray> {
-    let o = x.spawn_origin(d);
-    let target = crate::geometry::ray::offset_origin(y_p, y_n, -d);
+fn connection(x: &FirstVertex, y_p: Vec3, y_n: Vec3, d: Vec3) -> Option<Ray> {
+    let o = offset_origin(x.p, x.n, d);
+    let target = offset_origin(y_p, y_n, -d);
     let v = target - o;
     let len = v.length();
     if !(len > 0.0) || !len.is_finite() {
@@ -236,7 +256,6 @@ pub fn combine<S: Spectrum>(scene: &Scene, groups: &[u32], lanes: &[ReuseLane<S>
     let mut start = 0usize;
     let mut pair = 0usize;
     let mut estimate = [S::zero(); MAX_GROUP];
-    let mut seen: Vec<(usize, f32)> = Vec::with_capacity(MAX_GROUP);
     for &len in groups {
         let g = start..start + len as usize;
         start = g.end;
@@ -244,15 +263,15 @@ pub fn combine<S: Spectrum>(scene: &Scene, groups: &[u32], lanes: &[ReuseLane<S>
         for j in g.clone().filter(|&j| lanes[j].shareable) {
             let lj = &lanes[j];
             // j itself sees y_j: it sampled it.
-            seen.clear();
-            seen.push((j, area_pdf(&lj.x, lj.y_p, lj.y_n).0));
+            buf.seen.clear();
+            buf.seen.push((j, area_pdf(&lj.x, lj.y_p, lj.y_n).0));
             while pair < buf.pairs.len() && buf.pairs[pair].1 as usize == j {
                 if !buf.blocked[pair] {
-                    seen.push((buf.pairs[pair].0 as usize, buf.pairs[pair].2));
+                    buf.seen.push((buf.pairs[pair].0 as usize, buf.pairs[pair].2));
                 }
                 pair += 1;
             }
-            let den: f32 = seen.iter().map(|s| s.1).sum();
+            let den: f32 = buf.seen.iter().map(|s| s.1).sum();
             if !(den > 0.0) {
                 continue;
             }
@@ -264,7 +283,7 @@ pub fn combine<S: Spectrum>(scene: &Scene, groups: &[u32], lanes: &[ReuseLane<S>
             }
             let Some(l) = S::from_channels4(l) else { continue };
             let l = l * (1.0 / den);
-            for &(k, p) in &seen {
+            for &(k, p) in &buf.seen {
                 estimate[k - g.start] += lanes[k].rho * l * p;
             }
         }

@@ -372,7 +372,7 @@ pub fn render_row<S: Spectrum>(
     let mut bad = 0;
     let size = batch_size();
     let mut batch = Vec::with_capacity(size);
-    if path_reuse::applies::<S>(scene, pt.reuse_pixels, pt.rr_depth) {
+    if path_reuse::applies::<S>(scene, pt) {
         // Paths in groups (a sample index, consecutive pixels), a batch
         // holding whole groups.
         let n = pt.reuse_pixels;
