@@ -18,12 +18,20 @@
 //! the first and last rows sit exactly at the poles (row j at θ = jπ/(H−1));
 //! radiance is interpolated bilinearly between them.
 //!
-//! **Sampling**: a 2-D piecewise-constant distribution over the W × (H−1)
-//! cells between texel centres, each weighted by its mean luminance times
-//! its solid angle (∫ sin θ dθ dφ), chosen by a marginal distribution over
-//! rows and a conditional one within the row; inside a cell the direction
-//! is uniform in φ and in cos θ, so the density per unit solid angle is the
-//! cell's probability over its solid angle — finite at the poles.
+//! **Sampling** (as Mitsuba's): a continuous 2-D density over the texel
+//! grid, bilinear between the texels' luminance × sin θ, so that within a
+//! cell it follows the bilinearly interpolated radiance it is sampled for
+//! (a piecewise-constant density per cell leaves the ratio of radiance to
+//! density varying across a cell by the contrast of its four texels). A
+//! cell is chosen by descending a pyramid of the cells' integrals
+//! ([`CellHierarchy`]), which keeps stratified samples spread over the map
+//! (choosing a row, then a column in it, does not: on Mitsuba's textured
+//! material-preview scene that cost 1.2× the error of stratified
+//! samplers); within the cell, x by the patch's linear marginal, then y
+//! given x. The density per unit solid angle is the texel-space density
+//! over sin θ · 2π²/((H−1)W), finite at the poles, where the weights vanish
+//! with sin θ. A sample's radiance is interpolated at the sampled texel
+//! coordinates, with no round trip through the direction.
 //!
 //! **Spectral modes**: each texel is uplifted as an illuminant, as Mitsuba's
 //! envmap does it: colour c becomes 2 max(c) · s(λ) · D65(λ), with s the
@@ -48,7 +56,7 @@
 //! ```
 
 use super::EmitterSample;
-use crate::math::sampling::DiscreteDistribution;
+use crate::math::sampling::CellHierarchy;
 use crate::math::{PI, Transform};
 use crate::spectrum::cie::d65_unit;
 use crate::spectrum::uplift::{RgbUplift, SigmoidPolynomial};
@@ -66,16 +74,18 @@ fn luminance(c: Rgb) -> f32 {
 pub struct EnvironmentMap {
     width: usize,
     height: usize,
-    /// Radiance (scale applied), row 0 at the top (θ = 0).
-    texels: Vec<Rgb>,
+    /// Per texel, row 0 at the top (θ = 0): its radiance (scale applied)
+    /// and, fourth, its luminance × sin θ, the sampling density's value
+    /// there (bilinear in between). Together, so that a lookup of both
+    /// reads one 16-byte slot a corner.
+    texels: Vec<[f32; 4]>,
     to_world: Transform,
-    /// cos θ of each texel row.
-    cos_theta: Vec<f32>,
-    /// Row choice (H − 1 rows of cells), then the cell within the row.
-    marginal: DiscreteDistribution,
-    conditional: Vec<DiscreteDistribution>,
-    /// Probability of each cell divided by its solid angle (row-major).
-    cell_density: Vec<f32>,
+    /// The cells between texels, each weighted by its integral (the mean
+    /// of its corners' weights), for choosing one.
+    cells: CellHierarchy,
+    /// 1 / (the weight's integral over texel space × 2π²/((H−1)W)): the
+    /// factor from a bilinear weight over sin θ to solid-angle density.
+    density_scale: f32,
     /// Per texel, the illuminant uplift (scale, shape), made on first
     /// spectral use.
     uplift: OnceLock<Vec<(f32, SigmoidPolynomial)>>,
@@ -97,31 +107,17 @@ impl EnvironmentMap {
         }
         let texels: Vec<Rgb> = texels.into_iter().map(|t| t.map(|v| v.max(0.0) * scale)).collect();
         let rows = height - 1;
-        let d_theta = PI / rows as f32;
-        let cos_theta: Vec<f32> = (0..height).map(|j| if j == rows { -1.0 } else { (j as f32 * d_theta).cos() }).collect();
-        let d_phi = 2.0 * PI / width as f32;
-        let lum: Vec<f32> = texels.iter().map(|&t| luminance(t)).collect();
-        // Cell (i, j) spans texel columns i, i+1 (wrapping) and rows j, j+1.
-        let mut weights = vec![0.0f32; width * rows];
-        let mut solid_angle = vec![0.0f32; rows];
-        for j in 0..rows {
-            solid_angle[j] = d_phi * (cos_theta[j] - cos_theta[j + 1]);
-            for i in 0..width {
-                let i1 = (i + 1) % width;
-                let mean = 0.25 * (lum[j * width + i] + lum[j * width + i1] + lum[(j + 1) * width + i] + lum[(j + 1) * width + i1]);
-                weights[j * width + i] = mean * solid_angle[j];
-            }
-        }
-        let conditional: Vec<DiscreteDistribution> =
-            (0..rows).map(|j| DiscreteDistribution::new(weights[j * width..(j + 1) * width].iter().copied())).collect();
-        let marginal = DiscreteDistribution::new(conditional.iter().map(|c| c.sum()));
-        let total = marginal.sum();
-        let cell_density = weights
-            .iter()
-            .enumerate()
-            .map(|(k, &w)| if total > 0.0 && solid_angle[k / width] > 0.0 { w / total / solid_angle[k / width] } else { 0.0 })
-            .collect();
-        Ok(EnvironmentMap { width, height, texels, to_world, cos_theta, marginal, conditional, cell_density, uplift: OnceLock::new() })
+        // sin θ of each texel row, exactly 0 at the poles.
+        let sin_theta = |j: usize| if j == 0 || j == rows { 0.0 } else { (PI * j as f32 / rows as f32).sin().max(0.0) };
+        let weight: Vec<f32> = texels.iter().enumerate().map(|(k, &t)| luminance(t) * sin_theta(k / width)).collect();
+        let texels: Vec<[f32; 4]> = texels.iter().zip(&weight).map(|(t, &w)| [t[0], t[1], t[2], w]).collect();
+        // Cell (i, j) spans texel columns i, i + 1 (wrapping) and rows j, j + 1.
+        let corner = |i: usize, j: usize| weight[j * width + i % width];
+        let cells = CellHierarchy::new(width, rows, |i, j| 0.25 * (corner(i, j) + corner(i + 1, j) + corner(i, j + 1) + corner(i + 1, j + 1)));
+        let total = cells.sum() as f64;
+        let jacobian = 2.0 * std::f64::consts::PI * std::f64::consts::PI / (rows * width) as f64;
+        let density_scale = if total > 0.0 { (1.0 / (total * jacobian)) as f32 } else { 0.0 };
+        Ok(EnvironmentMap { width, height, texels, to_world, cells, density_scale, uplift: OnceLock::new() })
     }
 
     pub fn resolution(&self) -> (usize, usize) {
@@ -130,14 +126,19 @@ impl EnvironmentMap {
 
     /// Continuous texel coordinates (x along the width, shifted half a
     /// texel so that integers are texel centres, in [0, W); y in [0, H−1])
-    /// of the world direction `d`.
+    /// of the map-frame unit direction `l`.
     #[inline]
-    fn texel_coords(&self, d: Vec3) -> Vec2 {
-        let l = self.to_world.inverse_vector(d).normalize_or_zero();
+    fn texel_coords(&self, l: Vec3) -> Vec2 {
         let u = crate::math::trig::atan2(l.x, -l.z) * (0.5 / PI) - 0.5 / self.width as f32;
         let u = u - u.floor();
         let v = l.y.clamp(-1.0, 1.0).acos() * (1.0 / PI);
         Vec2::new((u * self.width as f32).min(self.width as f32 * (1.0 - f32::EPSILON)), v * (self.height - 1) as f32)
+    }
+
+    /// The map-frame unit direction of world direction `d`.
+    #[inline]
+    fn local(&self, d: Vec3) -> Vec3 {
+        self.to_world.inverse_vector(d).normalize_or_zero()
     }
 
     /// The cell holding texel coordinates `c`, and the offsets within it.
@@ -148,17 +149,44 @@ impl EnvironmentMap {
         (i, j, (c.x - i as f32).clamp(0.0, 1.0), (c.y - j as f32).clamp(0.0, 1.0))
     }
 
+    /// The four texels of cell (i, j) and their bilinear weights at
+    /// offsets (fx, fy).
+    #[inline]
+    fn corners(&self, i: usize, j: usize, fx: f32, fy: f32) -> ([usize; 4], [f32; 4]) {
+        let i1 = if i + 1 == self.width { 0 } else { i + 1 };
+        let w = self.width;
+        ([j * w + i, j * w + i1, (j + 1) * w + i, (j + 1) * w + i1], [(1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy])
+    }
+
     /// Radiance arriving along a ray travelling in world direction `d` (it
     /// comes from −d... i.e. the map is looked up at `d`, the direction the
     /// ray escapes to).
     #[inline]
     pub fn eval<S: Spectrum>(&self, d: Vec3, wl: &S::Wavelengths) -> S {
-        let (i, j, fx, fy) = self.cell(self.texel_coords(d));
-        let i1 = (i + 1) % self.width;
-        let w = self.width;
-        let idx = [j * w + i, j * w + i1, (j + 1) * w + i, (j + 1) * w + i1];
-        let wt = [(1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy];
-        let rgb = self.texels[idx[0]] * wt[0] + self.texels[idx[1]] * wt[1] + self.texels[idx[2]] * wt[2] + self.texels[idx[3]] * wt[3];
+        let (i, j, fx, fy) = self.cell(self.texel_coords(self.local(d)));
+        self.eval_cell(i, j, fx, fy, wl)
+    }
+
+    #[inline]
+    fn rgb(&self, k: usize) -> Rgb {
+        let [r, g, b, _] = self.texels[k];
+        Rgb::new(r, g, b)
+    }
+
+    /// [`EnvironmentMap::eval`] and [`EnvironmentMap::pdf_direction`] of
+    /// the world direction `d` in one lookup (for rays that escaped).
+    #[inline]
+    pub fn eval_pdf<S: Spectrum>(&self, d: Vec3, wl: &S::Wavelengths) -> (S, f32) {
+        let l = self.local(d);
+        let (i, j, fx, fy) = self.cell(self.texel_coords(l));
+        (self.eval_cell(i, j, fx, fy, wl), self.density_cell(i, j, fx, fy, (l.x * l.x + l.z * l.z).sqrt()))
+    }
+
+    /// Radiance at offsets (fx, fy) in cell (i, j), bilinear between its texels.
+    #[inline]
+    fn eval_cell<S: Spectrum>(&self, i: usize, j: usize, fx: f32, fy: f32, wl: &S::Wavelengths) -> S {
+        let (idx, wt) = self.corners(i, j, fx, fy);
+        let rgb = self.rgb(idx[0]) * wt[0] + self.rgb(idx[1]) * wt[1] + self.rgb(idx[2]) * wt[2] + self.rgb(idx[3]) * wt[3];
         if S::hero_wavelength(wl).is_none() {
             return S::from_illuminant(rgb, wl);
         }
@@ -169,7 +197,8 @@ impl EnvironmentMap {
             let table = RgbUplift::get();
             self.texels
                 .iter()
-                .map(|&t| {
+                .map(|&[r, g, b, _]| {
+                    let t = Rgb::new(r, g, b);
                     let scale = 2.0 * t[0].max(t[1]).max(t[2]);
                     if scale > 0.0 { (scale, table.reflectance(t * (1.0 / scale))) } else { (0.0, table.reflectance(Rgb::BLACK)) }
                 })
@@ -181,37 +210,91 @@ impl EnvironmentMap {
         S::from_function(rgb, |l| (0..4).map(|k| wt[k] * c[k].1.eval(l)).sum::<f32>() * scale * d65_unit(l), wl).depolarize()
     }
 
+    /// Solid-angle density at offsets (fx, fy) in cell (i, j) of a
+    /// direction with `sin_theta`.
+    #[inline]
+    fn density_cell(&self, i: usize, j: usize, fx: f32, fy: f32, sin_theta: f32) -> f32 {
+        let (idx, wt) = self.corners(i, j, fx, fy);
+        let w = self.texels[idx[0]][3] * wt[0] + self.texels[idx[1]][3] * wt[1] + self.texels[idx[2]][3] * wt[2] + self.texels[idx[3]][3] * wt[3];
+        if sin_theta > 0.0 { w * self.density_scale / sin_theta } else { 0.0 }
+    }
+
     /// Solid-angle density of [`EnvironmentMap::sample_direction`] for the
     /// world direction `d`.
     #[inline]
     pub fn pdf_direction(&self, d: Vec3) -> f32 {
-        let (i, j, _, _) = self.cell(self.texel_coords(d));
-        self.cell_density[j * self.width + i]
+        let l = self.local(d);
+        let (i, j, fx, fy) = self.cell(self.texel_coords(l));
+        self.density_cell(i, j, fx, fy, (l.x * l.x + l.z * l.z).sqrt())
     }
 
-    /// A direction by the luminance × solid-angle distribution.
+    /// The cells [`EnvironmentMap::sample_direction`] picks for each of
+    /// `us`, all at once ([`CellHierarchy::sample_batch`]), for
+    /// [`EnvironmentMap::sample_direction_in`]; their texels are
+    /// prefetched.
+    pub fn sample_cells(&self, us: &[Vec2], out: &mut [Option<(usize, usize, Vec2)>]) {
+        self.cells.sample_batch(us, out);
+        for &(i, j, _) in out.iter().flatten() {
+            let (idx, _) = self.corners(i, j, 0.0, 0.0);
+            for k in idx {
+                crate::geometry::prefetch(self.texels.get(k));
+            }
+        }
+    }
+
+    /// A direction by the density of luminance (bilinear over the texels)
+    /// per unit solid angle.
     pub fn sample_direction<S: Spectrum>(&self, u: Vec2, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
-        if !(self.marginal.sum() > 0.0) {
+        self.sample_direction_in(self.cells.sample(u), wl)
+    }
+
+    /// [`EnvironmentMap::sample_direction`] from the cell it picks and the
+    /// sample re-scaled within it ([`EnvironmentMap::sample_cells`]).
+    #[inline]
+    pub fn sample_direction_in<S: Spectrum>(&self, cell: Option<(usize, usize, Vec2)>, wl: &S::Wavelengths) -> Option<EmitterSample<S>> {
+        if !(self.density_scale > 0.0) {
             return None;
         }
-        let (j, uy) = self.marginal.sample_reuse(u.y);
-        let (i, ux) = self.conditional[j].sample_reuse(u.x);
-        let pdf = self.cell_density[j * self.width + i];
-        if !(pdf > 0.0) {
-            return None;
-        }
-        let cos_theta = self.cos_theta[j] + uy * (self.cos_theta[j + 1] - self.cos_theta[j]);
-        let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-        let phi = 2.0 * PI * (i as f32 + ux + 0.5) / self.width as f32;
+        let (i, j, r) = cell?;
+        // Within the cell, the bilinear patch of its corners' weights: x by
+        // its marginal (linear), then y given x (linear).
+        let (idx, _) = self.corners(i, j, 0.0, 0.0);
+        let v = idx.map(|k| self.texels[k][3]);
+        let fx = sample_linear(r.x, v[0] + v[2], v[1] + v[3]);
+        let fy = sample_linear(r.y, (1.0 - fx) * v[0] + fx * v[1], (1.0 - fx) * v[2] + fx * v[3]);
+        let w = self.width;
+
+        let (sin_theta, cos_theta) = (PI * (j as f32 + fy) / (self.height - 1) as f32).sin_cos();
+        let phi = 2.0 * PI * (i as f32 + fx + 0.5) / w as f32;
         let (sin_phi, cos_phi) = phi.sin_cos();
+        let pdf = self.density_cell(i, j, fx, fy, sin_theta);
+        if !(pdf > 0.0 && pdf.is_finite()) {
+            return None;
+        }
         let local = Vec3::new(sin_phi * sin_theta, cos_theta, -cos_phi * sin_theta);
         let d = self.to_world.vector(local).normalize_or_zero();
         if d == Vec3::ZERO {
             return None;
         }
-        let value: S = self.eval(d, wl);
+        let value: S = self.eval_cell(i, j, fx, fy, wl);
         Some(EmitterSample { d, dist: f32::INFINITY, p: None, n: Vec3::ZERO, weight: value / pdf, pdf, delta: false })
     }
+}
+
+/// The position in [0, 1] of `u` under the density that falls linearly
+/// from `a` at 0 to `b` at 1 (both ≥ 0): the root of a t + (b − a) t²/2 =
+/// u (a + b)/2, in the form without cancellation.
+#[inline]
+fn sample_linear(u: f32, a: f32, b: f32) -> f32 {
+    let sum = a + b;
+    if !(sum > 0.0) {
+        return u;
+    }
+    let denom = a + ((1.0 - u) * a * a + u * b * b).sqrt();
+    if !(denom > 0.0) {
+        return 0.0;
+    }
+    (u * sum / denom).clamp(0.0, 1.0)
 }
 
 #[cfg(test)]
@@ -238,6 +321,51 @@ mod tests {
 
     fn turned() -> Transform {
         Transform::rotate(Vec3::new(1.0, 2.0, 0.5).normalize(), 37.0).unwrap()
+    }
+
+    #[test]
+    fn sample_linear_inverts_the_linear_distribution() {
+        for (a, b) in [(1.0f32, 1.0f32), (0.0, 2.0), (3.0, 0.0), (1e-6, 5.0), (7.0, 0.25)] {
+            for k in 0..=20 {
+                let u = k as f32 / 20.0;
+                let t = sample_linear(u, a, b);
+                assert!((0.0..=1.0).contains(&t));
+                // The distribution function at t, normalized.
+                let cdf = (a * t + 0.5 * (b - a) * t * t) / (0.5 * (a + b));
+                assert!((cdf - u).abs() < 1e-5, "a={a} b={b} u={u}: t={t}, F(t)={cdf}");
+            }
+        }
+    }
+
+    /// The density follows the bilinearly interpolated luminance, so each
+    /// sample's radiance over its density is nearly the map's integral
+    /// (away from the poles, where sin θ is not linear between texel
+    /// rows); a density constant per cell varies it by the cells' contrast.
+    #[test]
+    fn radiance_over_density_is_nearly_constant() {
+        let (w, h) = (64, 33);
+        let mut rng = Pcg32::new(5, 9);
+        let texels: Vec<Rgb> = (0..w * h)
+            .map(|_| {
+                let v = 10f32.powf(4.0 * rng.next_f32() - 2.0);
+                Rgb::new(v, 0.8 * v, 0.6 * v)
+            })
+            .collect();
+        let m = EnvironmentMap::new(w, h, texels, 1.0, turned()).unwrap();
+        let (mut lo, mut hi, mut count) = (f32::INFINITY, 0.0f32, 0);
+        for _ in 0..20000 {
+            let s = m.sample_direction::<Rgb>(Vec2::new(rng.next_f32(), rng.next_f32()), &()).unwrap();
+            let l = m.local(s.d);
+            if l.y.abs() > std::f32::consts::FRAC_1_SQRT_2 {
+                continue;
+            }
+            let r = luminance(s.weight);
+            lo = lo.min(r);
+            hi = hi.max(r);
+            count += 1;
+        }
+        assert!(count > 5000);
+        assert!(hi / lo < 1.3, "radiance / density spans {lo} to {hi}");
     }
 
     #[test]
@@ -316,7 +444,7 @@ mod tests {
     pub(crate) fn chi2_sphere(mut sample: impl FnMut(usize) -> Option<Vec3>, pdf: impl Fn(Vec3) -> f64) {
         const THETA: usize = 24;
         const PHI: usize = 48;
-        const N: usize = 1_000_000;
+        const N: usize = 8_000_000;
         const SUB: usize = 32;
         let dir = |theta: f64, phi: f64| Vec3::new((theta.sin() * phi.cos()) as f32, (theta.sin() * phi.sin()) as f32, theta.cos() as f32);
         let mut observed = vec![0.0f64; THETA * PHI];

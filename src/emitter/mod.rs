@@ -194,6 +194,16 @@ impl Emitter {
         }
     }
 
+    /// [`Emitter::eval`] and [`Emitter::pdf_direction`] of a ray that
+    /// escaped along `d`, in one lookup where the emitter has one.
+    #[inline]
+    pub fn eval_pdf_escaped<S: Spectrum>(&self, scene: &Scene, p: Vec3, d: Vec3, wl: &S::Wavelengths) -> (S, f32) {
+        match self {
+            Emitter::EnvMap(e) => e.eval_pdf(d, wl),
+            _ => (self.eval(Arrival::Escaped(d), wl), self.pdf_direction(scene, p, Arrival::Escaped(d))),
+        }
+    }
+
     /// Starts a light path on this emitter: a point and a direction leaving
     /// it (the emitter's selection not included). `None` if nothing is
     /// emitted there.

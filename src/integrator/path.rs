@@ -71,8 +71,8 @@ impl PathTracer {
             let si = &slot;
             if !hit {
                 if visible {
-                    if let Some(env) = scene.environment_radiance::<S>(ray.d, wl) {
-                        result += throughput * env * escaped_weight(scene, &ShadingPoint { p: prev_p, n: prev_n }, prev_pdf, prev_delta, ray.d);
+                    if let Some((env, w)) = escaped::<S>(scene, &ShadingPoint { p: prev_p, n: prev_n }, prev_pdf, prev_delta, ray.d, wl) {
+                        result += throughput * env * w;
                     }
                 }
                 break;
@@ -171,6 +171,15 @@ pub fn next_event<S: Spectrum>(
 #[inline]
 pub fn hit_weight(scene: &Scene, prev: &ShadingPoint, prev_pdf: f32, prev_delta: bool, si: &SurfaceInteraction) -> f32 {
     if prev_delta { 1.0 } else { mis_power(prev_pdf, scene.pdf_emitter_hit(prev, si)) }
+}
+
+/// The environment's radiance along a ray from `prev` that escaped in the
+/// unit direction `d`, and its MIS weight as [`escaped_weight`] gives it
+/// (radiance and density in one lookup); `None` without an environment.
+#[inline]
+pub fn escaped<S: Spectrum>(scene: &Scene, prev: &ShadingPoint, prev_pdf: f32, prev_delta: bool, d: glam::Vec3, wl: &S::Wavelengths) -> Option<(S, f32)> {
+    let (env, pdf) = scene.environment_radiance_pdf::<S>(prev, d, wl, !prev_delta)?;
+    Some((env, if prev_delta { 1.0 } else { mis_power(prev_pdf, pdf) }))
 }
 
 /// As [`hit_weight`] for the environment met along the unit direction `d`.

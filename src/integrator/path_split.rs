@@ -35,7 +35,7 @@
 use crate::bsdf::{Bsdf, BsdfContext, Lobe};
 use crate::emitter::ShadingPoint;
 use crate::geometry::{Ray, SurfaceInteraction};
-use crate::integrator::path::{PathTracer, escaped_weight, hit_weight};
+use crate::integrator::path::{PathTracer, escaped, hit_weight};
 use crate::math::mis_power;
 use crate::sampler::Sampler;
 use crate::scene::Scene;
@@ -134,8 +134,8 @@ impl PathTracer {
             let hit = scene.intersect_path_into(&ray, false, sampler, slot);
             let si = &*slot;
             if !hit {
-                if let Some(env) = scene.environment_radiance::<S>(ray.d, wl) {
-                    result += throughput * env * escaped_weight(scene, &prev, prev_pdf, prev_delta, ray.d);
+                if let Some((env, w)) = escaped::<S>(scene, &prev, prev_pdf, prev_delta, ray.d, wl) {
+                    result += throughput * env * w;
                 }
                 break;
             }

@@ -123,7 +123,7 @@ use crate::bsdf::{BsdfContext, Lobe};
 use crate::film::{FilmState, Filter, Image, Sink};
 use crate::geometry::{Ray, SurfaceInteraction};
 use crate::emitter::ShadingPoint;
-use crate::integrator::path::{escaped_weight, hit_weight, next_event};
+use crate::integrator::path::{escaped, hit_weight, next_event};
 use crate::math::rounding::{floor_i32, floor_i64};
 use crate::integrator::ptracer::shading_correction;
 use crate::math::rng::mix64;
@@ -474,8 +474,8 @@ impl Sppm {
         let mut after = 0u32;
         loop {
             let Some(si) = scene.intersect_path(&ray, false, &mut sampler) else {
-                if let Some(env) = scene.environment_radiance::<S>(ray.d, &wl) {
-                    l += beta * env * escaped_weight(scene, &prev, prev_pdf, prev_delta, ray.d);
+                if let Some((env, w)) = escaped::<S>(scene, &prev, prev_pdf, prev_delta, ray.d, &wl) {
+                    l += beta * env * w;
                 }
                 break;
             };

@@ -34,7 +34,7 @@
 use crate::bsdf::{Bsdf, BsdfContext, Lobe};
 use crate::emitter::ShadingPoint;
 use crate::geometry::{Ray, Shape, SurfaceInteraction};
-use crate::integrator::path::{escaped_weight, hit_weight, russian_roulette};
+use crate::integrator::path::{escaped, hit_weight, russian_roulette};
 use crate::math::mis_power;
 use crate::sampler::Sampler;
 use crate::scene::Scene;
@@ -122,8 +122,8 @@ impl VolPath {
             let visible = !(self.hide_emitters && depth == 0);
             if !hit {
                 if visible {
-                    if let Some(env) = scene.environment_radiance::<S>(ray.d, wl) {
-                        result += beta * env * escaped_weight(scene, &prev, prev_pdf, prev_delta, ray.d);
+                    if let Some((env, w)) = escaped::<S>(scene, &prev, prev_pdf, prev_delta, ray.d, wl) {
+                        result += beta * env * w;
                     }
                 }
                 break;

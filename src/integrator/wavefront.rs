@@ -193,6 +193,14 @@ pub struct Queues<S: Spectrum> {
     shadow_term: Vec<(S, f32)>,
     shadow_ray: Vec<Ray>,
     shadow_blocked: Vec<bool>,
+    /// Per path, its 2-D emitter sample (drawn ahead in `next_event`),
+    /// and where an environment map is the only emitter, the cell it
+    /// picks; the environment map's lanes and their samples.
+    nee_u: Vec<Vec2>,
+    nee_cell: Vec<Option<(usize, usize, Vec2)>>,
+    env_map_lane: Vec<u32>,
+    env_map_u: Vec<Vec2>,
+    env_map_cell: Vec<Option<(usize, usize, Vec2)>>,
     /// Area-light samples for the SIMD kernel: chunks of lanes, and per
     /// lane its path, the selection's probability and the emitter.
     area: Vec<AreaChunk>,
@@ -333,6 +341,11 @@ impl<S: Spectrum> Default for Queues<S> {
             shadow_term: Vec::with_capacity(BATCH),
             shadow_ray: Vec::with_capacity(BATCH),
             shadow_blocked: Vec::with_capacity(BATCH),
+            nee_u: Vec::with_capacity(BATCH),
+            nee_cell: Vec::with_capacity(BATCH),
+            env_map_lane: Vec::with_capacity(BATCH),
+            env_map_u: Vec::with_capacity(BATCH),
+            env_map_cell: Vec::with_capacity(BATCH),
             area: Vec::new(),
             area_meta: Vec::with_capacity(BATCH),
             lit_lane: Vec::with_capacity(BATCH),
@@ -605,10 +618,10 @@ fn shade_hits<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Q
         // paths meet none).
         if !q.hit[i] {
             if visible {
-                if let Some(env) = scene.environment_radiance::<S>(q.ray[i].d, &q.wl[i]) {
-                    let pv = q.prev[i];
-                    let prev = ShadingPoint { p: pv.p, n: pv.n };
-                    q.result[i] += q.throughput[i] * env * super::path::escaped_weight(scene, &prev, pv.pdf, pv.delta, q.ray[i].d);
+                let pv = q.prev[i];
+                let prev = ShadingPoint { p: pv.p, n: pv.n };
+                if let Some((env, w)) = super::path::escaped::<S>(scene, &prev, pv.pdf, pv.delta, q.ray[i].d, &q.wl[i]) {
+                    q.result[i] += q.throughput[i] * env * w;
                 }
             }
             continue;
@@ -658,10 +671,43 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     // batch's length once: through `q`, every lane reloaded the vectors'
     // pointers and lengths after each push into the chunks.
     let n = q.throughput.len();
-    let Queues { live, si, wl, sampler, throughput, area, area_meta, env, env_path, shadow_path, shadow_sample, shadow_term, shadow_ray, lights, shape_nee, one_emitter, .. } = q;
+    let Queues { live, si, wl, sampler, throughput, area, area_meta, env, env_path, shadow_path, shadow_sample, shadow_term, shadow_ray, lights, shape_nee, one_emitter, nee_u, nee_cell, env_map_lane, env_map_u, env_map_cell, .. } = q;
     let (si, wl, sampler, throughput) = (&si[..n], &mut wl[..n], &mut sampler[..n], &throughput[..n]);
     let (lights, shape_nee, one_emitter) = (&lights[..], &shape_nee[..], *one_emitter);
     let mut env_lanes = EnvLanes { chunks: env, paths: env_path };
+    // Pass 0: each path's 2-D emitter sample, drawn ahead (from the path's
+    // own sampler: the same draw). Where an environment map is the only
+    // emitter, the cells of all its samples are found together
+    // (`EnvironmentMap::sample_cells`): one descent of its pyramid at a
+    // time waits on each level's load and division in turn, and was a
+    // fifth of a render under a map.
+    nee_u.resize(n, Vec2::ZERO);
+    let env_map = match (one_emitter, scene.emitters.first()) {
+        (Some(true), Some(Emitter::EnvMap(e))) => Some(&**e),
+        _ => None,
+    };
+    env_map_lane.clear();
+    env_map_u.clear();
+    for &i in live.iter() {
+        let i = i as usize;
+        if matches!(shape_nee.get(si[i].shape as usize), None | Some(SurfaceNee::Skip)) {
+            continue;
+        }
+        let u = sampler[i].next_2d();
+        nee_u[i] = u;
+        if env_map.is_some() {
+            env_map_lane.push(i as u32);
+            env_map_u.push(u);
+        }
+    }
+    if let Some(e) = env_map {
+        nee_cell.resize(n, None);
+        env_map_cell.resize(env_map_u.len(), None);
+        e.sample_cells(env_map_u, env_map_cell);
+        for (&i, &c) in env_map_lane.iter().zip(env_map_cell.iter()) {
+            nee_cell[i as usize] = c;
+        }
+    }
     for &i in live.iter() {
         let i = i as usize;
         let si = &si[i];
@@ -674,7 +720,7 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
         if matches!(nee, SurfaceNee::Skip) {
             continue;
         }
-        let u = sampler[i].next_2d();
+        let u = nee_u[i];
         let selected = match one_emitter {
             Some(true) => Some((0, 1.0, u.x)),
             Some(false) => None,
@@ -742,7 +788,10 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
             area_meta.push(AreaLane { path: i as u32, pmf, emitter: index as u32, shade });
         } else if shade_diffuse && environment_lane(scene, &mut env_lanes, si, wl, throughput[i], i, index, pmf, Vec2::new(ux, u.y)) {
             // In the environment kernels' chunks.
-        } else if let Some((es, ray)) = scene.sample_emitter_ray_from::<S>(si, index, pmf, ux, u.y, wl) {
+        } else if let Some((es, ray)) = match env_map {
+            Some(e) => e.sample_direction_in::<S>(nee_cell[i], wl).and_then(|es| scene.emitter_ray(si, es, pmf)),
+            None => scene.sample_emitter_ray_from::<S>(si, index, pmf, ux, u.y, wl),
+        } {
             let Some(term) = bsdf_term(scene, si, &es, wl) else { continue };
             shadow_path.push(i as u32);
             shadow_sample.push(es);

@@ -263,6 +263,26 @@ impl Scene {
         Some(self.emitters[self.environment? as usize].eval(Arrival::Escaped(d), wl))
     }
 
+    /// Radiance arriving from the environment along a ray from `from` that
+    /// escaped in the unit direction `d`, and the density with which
+    /// emitter sampling at `from` picks `d` (selection included; as
+    /// [`Scene::pdf_environment`], computed only `with_pdf`, else 0);
+    /// `None` without an environment.
+    #[inline]
+    pub fn environment_radiance_pdf<S: Spectrum>(&self, from: &ShadingPoint, d: Vec3, wl: &S::Wavelengths, with_pdf: bool) -> Option<(S, f32)> {
+        let e = self.environment?;
+        let emitter = &self.emitters[e as usize];
+        if !with_pdf {
+            return Some((emitter.eval(Arrival::Escaped(d), wl), 0.0));
+        }
+        let pmf = self.emitter_pmf(e as usize, from);
+        if !(pmf > 0.0) {
+            return Some((emitter.eval(Arrival::Escaped(d), wl), 0.0));
+        }
+        let (radiance, pdf) = emitter.eval_pdf_escaped(self, from.p, d, wl);
+        Some((radiance, pdf * pmf))
+    }
+
     /// Picks an emitter for `u` in [0, 1) to light the shading point `at`
     /// (by the scene's [`LightSampling`] strategy): its index, the
     /// probability of that choice, and `u` re-scaled to [0, 1) within it.
@@ -343,10 +363,18 @@ impl Scene {
     pub fn sample_emitter_ray_from<S: Spectrum>(&self, si: &SurfaceInteraction, index: usize, pmf: f32, ux: f32, uy: f32, wl: &S::Wavelengths) -> Option<(EmitterSample<S>, Ray)> {
         let u = Vec2::new(ux, uy);
         // Area lights (the common case) inline, the others by call.
-        let mut sample = match &self.emitters[index] {
+        let sample = match &self.emitters[index] {
             Emitter::Area(a) => a.sample_direct::<S>(self, si.p, u, wl),
             e => e.sample_direct::<S>(self, si.p, u, wl),
         }?;
+        self.emitter_ray(si, sample, pmf)
+    }
+
+    /// The rest of [`Scene::sample_emitter_ray_from`] for an emitter
+    /// `sample` taken at `si`, picked with probability `pmf`: the selection
+    /// divided in, and the shadow ray.
+    #[inline(always)]
+    pub fn emitter_ray<S: Spectrum>(&self, si: &SurfaceInteraction, mut sample: EmitterSample<S>, pmf: f32) -> Option<(EmitterSample<S>, Ray)> {
         sample.weight = sample.weight / pmf;
         sample.pdf *= pmf;
         let o = si.spawn_origin(sample.d);

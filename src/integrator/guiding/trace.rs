@@ -25,7 +25,7 @@ use super::sdtree::{Record, SdTree, normal_bin};
 use crate::bsdf::{BsdfContext, Lobe};
 use crate::emitter::ShadingPoint;
 use crate::geometry::{Ray, SurfaceInteraction};
-use crate::integrator::path::{PathTracer, escaped_weight, hit_weight};
+use crate::integrator::path::{PathTracer, escaped, hit_weight};
 use crate::math::mis_power;
 use crate::sampler::Sampler;
 use crate::scene::Scene;
@@ -149,8 +149,8 @@ pub fn li<S: Spectrum>(
         let si = &slot;
         if !hit {
             if visible {
-                if let Some(env) = scene.environment_radiance::<S>(ray.d, wl) {
-                    let x = env * escaped_weight(scene, &ShadingPoint { p: prev_p, n: prev_n }, prev_pdf, prev_delta, ray.d);
+                if let Some((env, w)) = escaped::<S>(scene, &ShadingPoint { p: prev_p, n: prev_n }, prev_pdf, prev_delta, ray.d, wl) {
+                    let x = env * w;
                     result += throughput * x;
                     if let Some(r) = rec.as_deref_mut() {
                         r.add_emission(x, !prev_delta);
