@@ -56,6 +56,7 @@
 //! ```
 
 use super::EmitterSample;
+use crate::geometry::accel::SimdLevel;
 use crate::math::sampling::CellHierarchy;
 use crate::math::{PI, Transform};
 use crate::spectrum::cie::d65_unit;
@@ -232,8 +233,8 @@ impl EnvironmentMap {
     /// `us`, all at once ([`CellHierarchy::sample_batch`]), for
     /// [`EnvironmentMap::sample_direction_in`]; their texels are
     /// prefetched.
-    pub fn sample_cells(&self, us: &[Vec2], out: &mut [Option<(usize, usize, Vec2)>]) {
-        self.cells.sample_batch(us, out);
+    pub fn sample_cells(&self, level: SimdLevel, us: &[Vec2], out: &mut [Option<(usize, usize, Vec2)>]) {
+        self.cells.sample_batch(level, us, out);
         for &(i, j, _) in out.iter().flatten() {
             let (idx, _) = self.corners(i, j, 0.0, 0.0);
             for k in idx {

@@ -703,7 +703,7 @@ fn next_event<S: Spectrum>(scene: &Scene, q: &mut Queues<S>) {
     if let Some(e) = env_map {
         nee_cell.resize(n, None);
         env_map_cell.resize(env_map_u.len(), None);
-        e.sample_cells(env_map_u, env_map_cell);
+        e.sample_cells(scene.accel.simd_level(), env_map_u, env_map_cell);
         for (&i, &c) in env_map_lane.iter().zip(env_map_cell.iter()) {
             nee_cell[i as usize] = c;
         }
