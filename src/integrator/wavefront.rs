@@ -610,6 +610,8 @@ fn trace_extension<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &
 #[inline(never)]
 fn shade_hits<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Queues<S>) {
     let visible = !(pt.hide_emitters && depth == 0);
+    // Escaped paths meet light only from an environment.
+    let sky = visible && scene.environment.is_some();
     let last = depth.saturating_add(1) >= pt.max_depth;
     q.next.clear();
     for &i in &q.live {
@@ -617,7 +619,7 @@ fn shade_hits<S: Spectrum>(scene: &Scene, pt: &PathTracer, depth: u32, q: &mut Q
         // The previous vertex is read only where light was met (most
         // paths meet none).
         if !q.hit[i] {
-            if visible {
+            if sky {
                 let pv = q.prev[i];
                 let prev = ShadingPoint { p: pv.p, n: pv.n };
                 if let Some((env, w)) = super::path::escaped::<S>(scene, &prev, pv.pdf, pv.delta, q.ray[i].d, &q.wl[i]) {
