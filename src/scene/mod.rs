@@ -272,10 +272,7 @@ impl Scene {
     pub fn environment_radiance_pdf<S: Spectrum>(&self, from: &ShadingPoint, d: Vec3, wl: &S::Wavelengths, with_pdf: bool) -> Option<(S, f32)> {
         let e = self.environment?;
         let emitter = &self.emitters[e as usize];
-        if !with_pdf {
-            return Some((emitter.eval(Arrival::Escaped(d), wl), 0.0));
-        }
-        let pmf = self.emitter_pmf(e as usize, from);
+        let pmf = if with_pdf { self.emitter_pmf(e as usize, from) } else { 0.0 };
         if !(pmf > 0.0) {
             return Some((emitter.eval(Arrival::Escaped(d), wl), 0.0));
         }
