@@ -168,6 +168,9 @@ def main():
                     help="multiplies the references' sample and iteration counts (quick checks)")
     ap.add_argument("--mitsuba-python")
     ap.add_argument("--no-mitsuba", action="store_true")
+    ap.add_argument("--sppm", action="append", default=[], metavar="KEY=VALUE,...",
+                    help="an sppm setting to measure instead of the scene's (repeatable), e.g. "
+                         "photons=indirect,radius_footprints=3")
     ap.add_argument("--json")
     ap.add_argument("--snell", default=os.path.join(ROOT, "target", "release", "snell"))
     args = ap.parse_args()
@@ -195,7 +198,19 @@ def main():
         }
         # Each sppm setting is a method of its own, named by its properties.
         sppm_methods = []
-        for k, setting in enumerate(sc["sppm"]):
+        settings = sc["sppm"]
+        if args.sppm:
+            settings = []
+            for text in args.sppm:
+                setting = {}
+                for kv in text.split(","):
+                    key, _, value = kv.partition("=")
+                    try:
+                        setting[key] = int(value) if value.isdigit() else float(value)
+                    except ValueError:
+                        setting[key] = value
+                settings.append(setting)
+        for k, setting in enumerate(settings):
             props = dict(setting)
             per_px = props.pop("photons_per_pixel", None)
             if per_px:
