@@ -529,6 +529,48 @@ def rel_mse(img, ref):
     return sum((a - r) ** 2 / (r * r + 1e-2) for a, r in zip(img, ref)) / len(ref)
 
 
+def scene_variant(scene, prefix, integrator=None, sampler=None, box_filter=False):
+    """A copy of `scene` beside it (so relative paths hold), named `prefix` +
+    its name: with the <integrator> block replaced by the XML `integrator`,
+    the <sampler> type by `sampler` and the pixel filter by a box, where
+    given. Returns the copy's path (the caller removes it)."""
+    text = open(scene).read()
+    if integrator:
+        text, n = re.subn(r"<integrator.*?</integrator>", lambda _: integrator, text, count=1, flags=re.S)
+        if n != 1:
+            sys.exit(f"{scene}: no <integrator> block")
+    if box_filter:
+        text, n = re.subn(r"<rfilter[^>]*/>|<rfilter.*?</rfilter>", '<rfilter type="box"/>', text, flags=re.S)
+        if n == 0:
+            text = text.replace("</film>", '<rfilter type="box"/></film>', 1)
+    if sampler:
+        text, n = re.subn(r'<sampler\s+type="[a-z_]+"', f'<sampler type="{sampler}"', text, count=1)
+        if n != 1:
+            sys.exit(f"{scene}: no <sampler type=...> to replace")
+    path = os.path.join(os.path.dirname(scene), prefix + os.path.basename(scene))
+    with open(path, "w") as f:
+        f.write(text)
+    return path
+
+
+def run_snell(snell, scene, out, spp, seed, threads, defines):
+    """Renders `scene` to `out` (`defines`: -D name -> value); returns the
+    render's --stats as a dict. Exits with Snell's output if it fails."""
+    stats = f"{out}.stats.json"
+    cmd = [snell, "render", scene, "-o", out, "--spp", str(spp), "--seed", str(seed),
+           "--threads", str(threads), "--stats", stats, "--quiet"]
+    for k, v in defines.items():
+        cmd += ["-D", f"{k}={v}"]
+    r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    if r.returncode != 0:
+        print(r.stdout)
+        sys.exit(f"snell failed with exit code {r.returncode}: {' '.join(cmd)}")
+    with open(stats) as f:
+        st = json.load(f)
+    os.remove(stats)
+    return st
+
+
 def scene_with_sampler(scene, sampler, integrator_props=()):
     """A copy of `scene` (beside it, so relative paths hold) naming `sampler`,
     with properties `integrator_props` (KEY=VALUE) added to its integrator (boolean

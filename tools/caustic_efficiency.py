@@ -42,7 +42,7 @@ import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "tools"))
-from bench import LLVM_LIB, read_pfm, rel_mse  # noqa: E402
+from bench import LLVM_LIB, read_pfm, rel_mse, run_snell, scene_variant  # noqa: E402
 
 VENV_PY = os.path.join(ROOT, ".venv-mitsuba", "bin", "python")
 
@@ -87,39 +87,14 @@ def integrator_xml(kind, props):
 
 
 def variant(scene_file, integrator, sampler, tag):
-    """A copy of the scene beside it (relative paths hold) with `integrator`,
-    a box pixel filter and, if given, `sampler`."""
-    text = open(os.path.join(ROOT, scene_file)).read()
-    text, n = re.subn(r"<integrator.*?</integrator>", lambda _: integrator, text, count=1, flags=re.S)
-    if n != 1:
-        sys.exit(f"{scene_file}: no <integrator> block")
-    text, n = re.subn(r"<rfilter[^>]*/>|<rfilter.*?</rfilter>", '<rfilter type="box"/>', text, flags=re.S)
-    if n == 0:
-        text = text.replace("</film>", '<rfilter type="box"/></film>', 1)
-    if sampler:
-        text, n = re.subn(r'<sampler type="[a-z_]*"', f'<sampler type="{sampler}"', text, count=1)
-        if n != 1:
-            sys.exit(f"{scene_file}: no <sampler> element")
-    path = os.path.join(ROOT, os.path.dirname(scene_file), f".caustic-eff-{tag}-" + os.path.basename(scene_file))
-    with open(path, "w") as f:
-        f.write(text)
-    return path
+    """A copy of the scene beside it with `integrator`, a box pixel filter
+    and, if given, `sampler`."""
+    return scene_variant(os.path.join(ROOT, scene_file), f".caustic-eff-{tag}-", integrator, sampler, box_filter=True)
 
 
 def snell_render(args, xml, count, seed, out, defines):
-    stats = f"/tmp/caustic-eff-stats-{os.getpid()}.json"
-    cmd = [args.snell, "render", xml, "-o", out, "--spp", str(count), "--seed", str(seed),
-           "--threads", str(args.threads), "--stats", stats, "--quiet"]
-    for k, v in defines.items():
-        cmd += ["-D", f"{k}={v}"]
-    r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    if r.returncode != 0:
-        print(r.stdout)
-        sys.exit(f"snell failed with exit code {r.returncode}: {' '.join(cmd)}")
-    with open(stats) as f:
-        st = json.load(f)
-    os.remove(stats)
-    return float(st["render_cpu_seconds"]) / args.threads
+    """Renders; returns the render loop's CPU seconds per thread."""
+    return float(run_snell(args.snell, xml, out, count, seed, args.threads, defines)["render_cpu_seconds"]) / args.threads
 
 
 def mitsuba_python(args):
