@@ -554,11 +554,14 @@ def scene_variant(scene, prefix, integrator=None, sampler=None, box_filter=False
 
 
 def run_snell(snell, scene, out, spp, seed, threads, defines):
-    """Renders `scene` to `out` (`defines`: -D name -> value); returns the
-    render's --stats as a dict. Exits with Snell's output if it fails."""
+    """Renders `scene` to `out` (`defines`: -D name -> value; `seed` None:
+    the scene's own); returns the render's --stats as a dict. Exits with
+    Snell's output if it fails."""
     stats = f"{out}.stats.json"
-    cmd = [snell, "render", scene, "-o", out, "--spp", str(spp), "--seed", str(seed),
-           "--threads", str(threads), "--stats", stats, "--quiet"]
+    cmd = [snell, "render", scene, "-o", out, "--spp", str(spp), "--threads", str(threads),
+           "--stats", stats, "--quiet"]
+    if seed is not None:
+        cmd += ["--seed", str(seed)]
     for k, v in defines.items():
         cmd += ["-D", f"{k}={v}"]
     r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)

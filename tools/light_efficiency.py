@@ -35,6 +35,7 @@ LLVM_LIB = "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1"
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 import exrio  # noqa: E402
+from bench import run_snell  # noqa: E402
 
 
 def read_exr(path):
@@ -85,17 +86,8 @@ def with_strategy(scene, strategy):
 def snell_render(args, scene, strategy, spp, out):
     path = with_strategy(scene, strategy)
     try:
-        stats = out + ".json"
-        cmd = [args.snell, "render", path, "-o", out, "--spp", str(spp), "--threads", str(args.threads),
-               "--stats", stats]
-        if "res" in declared(scene):
-            cmd += ["-D", f"res={args.res}"]
-        r = subprocess.run(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        if r.returncode != 0:
-            print(r.stdout)
-            sys.exit(f"snell failed ({r.returncode})")
-        with open(stats) as f:
-            secs = float(json.load(f)["render_seconds"])
+        defines = {"res": args.res} if "res" in declared(scene) else {}
+        secs = float(run_snell(args.snell, path, out, spp, None, args.threads, defines)["render_seconds"])
         return read_exr(out), secs
     finally:
         os.remove(path)
