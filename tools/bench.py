@@ -409,7 +409,8 @@ def triangle_count(text):
 
 def bench_mesh(args):
     """--mesh: load + build seconds, render seconds, peak RSS and bytes per triangle
-    (RSS growth over a small mesh) for Snell and Mitsuba, medians of --runs."""
+    (RSS growth over a small mesh) for Snell and Mitsuba, medians of --runs, the two
+    run in turn and their ratio taken run by run."""
     sizes = [triangle_count(s) for s in args.mesh.split(",")]
     formats = [f.strip() for f in args.mesh_formats.split(",")]
     py = None
@@ -433,14 +434,21 @@ def bench_mesh(args):
             write_mesh(mesh, n)
             xml = mesh_scene(mesh, args.mesh_res, args.mesh_spp)
             row = {"format": fmt, "triangles": 2 * nu * nv}
-            for who, once in (("snell", (lambda: mesh_snell_once(args, xml)) if have_snell else None),
-                              ("mitsuba", (lambda: mesh_mitsuba_once(args, xml, py)) if py else None)):
-                if once is None:
+            who_once = [(who, once) for who, once in (
+                ("snell", (lambda: mesh_snell_once(args, xml)) if have_snell else None),
+                ("mitsuba", (lambda: mesh_mitsuba_once(args, xml, py)) if py else None)) if once is not None]
+            # The renderers in turn (Snell, Mitsuba, Snell, ...), so that a
+            # drift in the machine's speed reaches both alike; the ratios are
+            # taken run by run.
+            runs = {who: [] for who, _ in who_once}
+            for _ in range(args.runs):
+                for who, once in who_once:
+                    runs[who].append(once())
+            for who, _ in who_once:
+                done = [r for r in runs[who] if r]
+                if not done:
                     continue
-                runs = [r for r in (once() for _ in range(args.runs)) if r]
-                if not runs:
-                    continue
-                med = {k: statistics.median(r[k] for r in runs) for k in ("load", "render", "rss", "load_cpu")}
+                med = {k: statistics.median(r[k] for r in done) for k in ("load", "render", "rss", "load_cpu")}
                 if n == MESH_BASELINE:
                     base[who] = dict(med, triangles=row["triangles"])
                 elif who in base:
@@ -450,16 +458,25 @@ def bench_mesh(args):
                       f"(CPU {med['load_cpu']:7.3f} s)  "
                       f"render {med['render']:7.3f} s  peak RSS {med['rss'] / 2**20:8.1f} MiB"
                       + (f"  {med['bytes_per_tri']:6.1f} B/tri" if "bytes_per_tri" in med else ""))
+            pairs = [(s, m) for s, m in zip(runs.get("snell", []), runs.get("mitsuba", [])) if s and m]
+            if pairs:
+                # Mitsuba's time over Snell's: above 1 where Snell is faster.
+                row["speedup"] = {k: statistics.median(m[k] / s[k] for s, m in pairs) for k in ("load", "render")}
+                ratios = " ".join(f"{m['render'] / s['render']:.2f}" for s, m in pairs)
+                print(f"  {fmt} {row['triangles']:>8} Mitsuba/Snell, run by run: render {ratios} "
+                      f"(median {row['speedup']['render']:.2f}), load median {row['speedup']['load']:.2f}")
             if n != MESH_BASELINE:
                 rows.append(row)
-    print(f"summary (medians of {args.runs} runs)")
-    print(f"{'mesh':<14} {'':>8} {'load s':>8} {'load CPU':>9} {'render s':>9} {'B/tri':>7}")
+    print(f"summary (medians of {args.runs} runs; speedup: Mitsuba's seconds over Snell's, median of the run pairs)")
+    print(f"{'mesh':<14} {'':>8} {'load s':>8} {'load CPU':>9} {'render s':>9} {'B/tri':>7} {'speedup load':>13} {'render':>7}")
     for r in rows:
         for who in ("snell", "mitsuba"):
             if who in r:
                 m = r[who]
+                sp = r.get("speedup") if who == "snell" else None
                 print(f"{r['format']} {r['triangles']:>9} {who:<8} {m['load']:8.3f} {m['load_cpu']:9.3f} {m['render']:9.3f} "
-                      f"{m.get('bytes_per_tri', float('nan')):7.1f}")
+                      f"{m.get('bytes_per_tri', float('nan')):7.1f}"
+                      + (f" {sp['load']:13.2f} {sp['render']:7.2f}" if sp else ""))
     return rows
 
 
