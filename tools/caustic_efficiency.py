@@ -18,7 +18,10 @@ takes --seconds of CPU time per thread. Each method then renders seeds
     efficiency = 1 / (relMSE x CPU seconds / threads),
 
 relMSE = mean over pixels and channels of (x - ref)^2 / (ref^2 + 0.01) (as
-tools/bench.py), averaged over the runs; CPU seconds the median of the
+tools/bench.py), averaged over the runs, less the reference's own noise
+(for a path-traced reference: the variance of `path`'s runs, scaled by
+their sample count over the reference's; the measured figure is printed
+too); CPU seconds the median of the
 render loop's (Snell's `render_cpu_seconds`, Mitsuba's process time around
 mi.render after a warm-up render that compiles its kernels). The ratio
 columns divide by Snell's `path` and by Mitsuba's `path`. "bias" is each
@@ -145,7 +148,7 @@ def main():
     ap.add_argument("--no-mitsuba", action="store_true")
     ap.add_argument("--sppm", action="append", default=[], metavar="KEY=VALUE,...",
                     help="an sppm setting to measure instead of the scene's (repeatable), e.g. "
-                         "photons=indirect,radius_footprints=3")
+                         "photons=indirect,radius_footprints=3 (sampler=NAME: the camera paths' sampler)")
     ap.add_argument("--json")
     ap.add_argument("--snell", default=os.path.join(ROOT, "target", "release", "snell"))
     args = ap.parse_args()
@@ -190,8 +193,12 @@ def main():
             per_px = props.pop("photons_per_pixel", None)
             if per_px:
                 props["photon_count"] = int(round(per_px * args.res * args.res))
+            # `sampler` is the camera paths' sampler, not an sppm property.
+            sampler = props.pop("sampler", sc["sppm_sampler"])
             label = "sppm " + ",".join(f"{key}={v}" for key, v in props.items())
-            files[label] = variant(sc["file"], integrator_xml("sppm", props), sc["sppm_sampler"], f"{tag}-sppm{k}")
+            if sampler != sc["sppm_sampler"]:
+                label += f",sampler={sampler}"
+            files[label] = variant(sc["file"], integrator_xml("sppm", props), sampler, f"{tag}-sppm{k}")
             sppm_methods.append(label)
         files["mitsuba path"] = files["path"]
         try:
@@ -267,6 +274,24 @@ def main():
                 print(f"  {method}: {count} {'iterations' if method.startswith(('sppm', 'vcm')) else 'spp'}, "
                       f"relMSE {e:.3e} (variance {var:.2e})  CPU s {t:6.2f}  efficiency {1.0 / (e * t):10.2f}  "
                       f"bias {' '.join(f'{b:.3f}' for b in bias)}")
+            # The reference's own noise is in every relMSE above: E[(x − ref)²]
+            # = E[(x − truth)²] + Var(ref) for an unbiased reference independent
+            # of x. A path-traced reference has the variance of `path`'s runs
+            # scaled by their sample counts; it is subtracted, so that the
+            # best methods, whose error comes near it, are not understated.
+            # (The pool's sppm reference has no such estimate: not corrected.)
+            ref_noise = 0.0
+            if sc["ref"][0] == "path" and "path" in rows and rows["path"]["variance"] == rows["path"]["variance"]:
+                ref_spp = max(1, round(sc["ref"][1] * args.ref_scale))
+                ref_noise = rows["path"]["variance"] * rows["path"]["count"] / ref_spp
+                print(f"  the reference's noise (relMSE of a {ref_spp}-spp path render, from path's runs): {ref_noise:.2e}")
+            for method, row in rows.items():
+                row["ref_noise"] = ref_noise
+                row["rel_mse_raw"] = row["rel_mse"]
+                row["efficiency_raw"] = row["efficiency"]
+                row["rel_mse"] = row["rel_mse_raw"] - ref_noise
+                # A relMSE at the reference's noise cannot be told from zero.
+                row["efficiency"] = 1.0 / (row["rel_mse"] * row["seconds"]) if row["rel_mse"] > 0 else float("inf")
             for method, row in rows.items():
                 for base in ("path", "mitsuba path"):
                     if base in rows:
@@ -277,13 +302,15 @@ def main():
                 if os.path.exists(f):
                     os.remove(f)
 
-    print(f"\n| scene | method | count | relMSE | of which variance | CPU s / thread | efficiency | x Snell path | x Mitsuba path | bias R G B |")
+    print("\nrelMSE: against the reference, less the reference's own noise (measured relMSE in brackets); "
+          "efficiency and ratios from it")
+    print(f"\n| scene | method | count | relMSE (measured) | of which variance | CPU s / thread | efficiency | x Snell path | x Mitsuba path | bias R G B |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for res in results:
         for method, r in res["rows"].items():
             xp = f"{r['x path']:.2f}" if "x path" in r else ""
             xm = f"{r['x mitsuba path']:.2f}" if "x mitsuba path" in r else ""
-            print(f"| {res['scene']} | {method} | {r['count']} | {r['rel_mse']:.3e} | {r['variance']:.2e} | {r['seconds']:.2f} | "
+            print(f"| {res['scene']} | {method} | {r['count']} | {r['rel_mse']:.3e} ({r['rel_mse_raw']:.3e}) | {r['variance']:.2e} | {r['seconds']:.2f} | "
                   f"{r['efficiency']:.1f} | {xp} | {xm} | {' '.join(f'{b:.3f}' for b in r['bias'])} |")
     if args.json:
         with open(args.json, "w") as f:
