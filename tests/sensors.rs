@@ -5,6 +5,9 @@
 //! focal-lanczos.exr, 64×48, 65 536 spp, tools/make_references.py) are
 //! committed; Snell renders 16 passes × 16 spp and must agree within 1 % in
 //! the image means and within noise in every 8×8 block.
+//!
+//! The radiance meter against closed forms: the sky's radiance seen
+//! directly, and ρ·L off a diffuse plane under a uniform sky.
 
 use crate::common::*;
 use snell::LoadOptions;
@@ -34,7 +37,7 @@ fn tan_half_x(text: &str) -> f32 {
     match scene.camera {
         Camera::Perspective(c) => c.tan_half_x,
         Camera::ThinLens(c) => c.tan_half_x,
-        Camera::Orthographic(_) => panic!("not a perspective camera"),
+        Camera::Orthographic(_) | Camera::RadianceMeter(_) => panic!("not a perspective camera"),
     }
 }
 
@@ -87,4 +90,85 @@ fn bad_focal_lengths_and_thin_lens_parameters_are_located_errors() {
         Err(e) => e,
     };
     assert!(e.message.contains("aperture_radius"), "{e}");
+}
+
+/// A radiancemeter scene: `sensor` (its placement), a 100 × 100 diffuse
+/// plane of reflectance (0.2, 0.5, 0.8) at z = 0 and a sky of radiance
+/// (2, 1, 0.5); `film` the film's width and height.
+fn meter_scene(sensor: &str, film: (u32, u32)) -> String {
+    let (w, h) = film;
+    format!(
+        r#"<scene version="3.0.0">
+    <integrator type="path"><integer name="max_depth" value="4"/></integrator>
+    <sensor type="radiancemeter">
+        {sensor}
+        <sampler type="independent"><integer name="sample_count" value="256"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="{w}"/><integer name="height" value="{h}"/><rfilter type="box"/></film>
+    </sensor>
+    <shape type="rectangle">
+        <transform name="to_world"><scale value="50"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.2, 0.5, 0.8"/></bsdf>
+    </shape>
+    <emitter type="constant"><rgb name="radiance" value="2, 1, 0.5"/></emitter>
+</scene>"#
+    )
+}
+
+/// Mean and standard error, per channel, of the passes' single pixel.
+fn meter_reading(text: &str, passes: u32, spp: u32) -> ([f64; 3], [f64; 3]) {
+    let images = render_passes(&repo("tests/scenes/radiancemeter.xml"), Some(text), params(&[]), passes, spp);
+    let n = images.len() as f64;
+    let mut mean = [0.0; 3];
+    let mut stderr = [0.0; 3];
+    for c in 0..3 {
+        let v: Vec<f64> = images.iter().map(|img| img.pixels[0][c] as f64).collect();
+        mean[c] = v.iter().sum::<f64>() / n;
+        let var = v.iter().map(|x| (x - mean[c]).powi(2)).sum::<f64>() / (n - 1.0);
+        stderr[c] = (var / n).sqrt();
+    }
+    (mean, stderr)
+}
+
+#[test]
+fn radiancemeter_reads_the_sky_and_a_lit_diffuse_plane() {
+    // Looking up: every sample is the sky's radiance, exactly.
+    let up = meter_scene(r#"<point name="origin" x="0" y="0" z="1"/><vector name="direction" x="0" y="0.2" z="1"/>"#, (1, 1));
+    let (mean, stderr) = meter_reading(&up, 4, 16);
+    for (c, want) in [2.0, 1.0, 0.5].into_iter().enumerate() {
+        assert!((mean[c] - want).abs() < 1e-6 && stderr[c] < 1e-7, "sky channel {c}: {} ± {}", mean[c], stderr[c]);
+    }
+    // Looking down at the plane (by origin/direction, and by to_world):
+    // irradiance π·L from the sky's upper hemisphere, so radiance ρ·L.
+    let want = [0.2 * 2.0, 0.5 * 1.0, 0.8 * 0.5];
+    for sensor in [
+        r#"<point name="origin" x="0.1" y="0.2" z="1"/><vector name="direction" x="0.3" y="0" z="-1"/>"#,
+        r#"<transform name="to_world"><lookat origin="-1, 0.5, 2" target="0.5, 0, 0" up="0, 0, 1"/></transform>"#,
+    ] {
+        let (mean, stderr) = meter_reading(&meter_scene(sensor, (1, 1)), 16, 256);
+        for c in 0..3 {
+            // The test must be able to fail: the noise is well below the value.
+            assert!(stderr[c] < 0.01 * want[c], "{sensor}: channel {c} too noisy: ± {}", stderr[c]);
+            assert!((mean[c] - want[c]).abs() < 4.0 * stderr[c] + 1e-4, "{sensor}: channel {c}: {} ± {} against ρ·L = {}", mean[c], stderr[c], want[c]);
+        }
+    }
+}
+
+#[test]
+fn radiancemeter_errors_are_located() {
+    let path = repo("tests/scenes/radiancemeter.xml");
+    let load = |text: &str| match snell::load_str(&path, text, &LoadOptions::default()) {
+        Ok(_) => panic!("expected an error:\n{text}"),
+        Err(e) => e.to_string(),
+    };
+    let e = load(&meter_scene("", (2, 3)));
+    assert!(e.contains("film must be 1 × 1 pixels, not 2 × 3") && e.contains(":6:"), "{e}");
+    let e = load(&meter_scene(r#"<point name="origin" x="0" y="0" z="1"/>"#, (1, 1)));
+    assert!(e.contains("needs a direction too") && e.contains(":4:"), "{e}");
+    let e = load(&meter_scene(r#"<point name="origin" x="0" y="0" z="1"/><vector name="direction" x="0" y="0" z="0"/>"#, (1, 1)));
+    assert!(e.contains("finite, non-zero vector"), "{e}");
+    // As Mitsuba, a film one pixel wide (or high) is accepted: each pixel reads the same ray.
+    assert!(snell::load_str(&path, &meter_scene("", (1, 4)), &LoadOptions::default()).is_ok());
+    // Light paths cannot reach it.
+    let e = load(&meter_scene("", (1, 1)).replace(r#"<integrator type="path">"#, r#"<integrator type="ptracer">"#));
+    assert!(e.contains("ptracer needs a perspective sensor"), "{e}");
 }

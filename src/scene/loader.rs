@@ -26,7 +26,7 @@ use crate::integrator::sppm::Photons as SppmPhotons;
 use crate::math::Transform;
 use crate::sampler::SamplerSpec;
 use crate::sensor::perspective::{focal_length_fov, horizontal_fov, parse_focal_length};
-use crate::sensor::{Camera, Orthographic, Perspective, ThinLens};
+use crate::sensor::{Camera, Orthographic, Perspective, RadianceMeter, ThinLens};
 use crate::spectrum::{Emission, Rgb};
 use crate::texture::bitmap::{self, Bitmap};
 use crate::texture::{Checkerboard, MeshAttributeTexture, Texture, uv_transform};
@@ -45,7 +45,7 @@ pub const BSDFS: [&str; 20] = [
 ];
 pub const TEXTURES: [&str; 4] = ["bitmap", "checkerboard", "mesh_attribute", "rawconstant"];
 pub const EMITTERS: [&str; 7] = ["area", "point", "spot", "constant", "directional", "envmap", "projector"];
-pub const SENSORS: [&str; 3] = ["perspective", "orthographic", "thinlens"];
+pub const SENSORS: [&str; 4] = ["perspective", "orthographic", "thinlens", "radiancemeter"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
 pub const SAMPLERS: [&str; 7] = crate::sampler::NAMES;
@@ -429,13 +429,13 @@ impl Loader {
         if let (Integrator::Particle(_), Some(loc)) = (&integrator, &integrator_loc) {
             // A light path must start somewhere finite and end in a pinhole.
             if !matches!(camera, Camera::Perspective(_)) {
-                return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic or thin-lens camera)")
+                return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic, thin-lens or radiancemeter sensor)")
                     .with_choices(&["perspective"]));
             }
         }
         if let (Integrator::Vcm(_), Some(loc)) = (&integrator, &integrator_loc) {
             if !matches!(camera, Camera::Perspective(_)) {
-                return Err(SceneError::at(loc, "vcm needs a perspective sensor (light subpaths cannot be connected to an orthographic or thin-lens camera)")
+                return Err(SceneError::at(loc, "vcm needs a perspective sensor (light subpaths cannot be connected to an orthographic, thin-lens or radiancemeter sensor)")
                     .with_choices(&["perspective"]));
             }
             if self.emitters.iter().any(|e| matches!(e, Emitter::Projector(_))) {
@@ -446,7 +446,7 @@ impl Loader {
         if let (Integrator::Bdpt(_), Some(loc)) = (&integrator, &integrator_loc) {
             // Light subpaths end in a pinhole.
             if !matches!(camera, Camera::Perspective(_)) {
-                return Err(SceneError::at(loc, "bdpt needs a perspective sensor (light subpaths cannot be connected to an orthographic or thin-lens camera)")
+                return Err(SceneError::at(loc, "bdpt needs a perspective sensor (light subpaths cannot be connected to an orthographic, thin-lens or radiancemeter sensor)")
                     .with_choices(&["perspective"]));
             }
             if self.emitters.iter().any(|e| matches!(e, Emitter::Projector(_))) {
@@ -1274,6 +1274,31 @@ impl Loader {
                         principal_offset: offset,
                     })
                 }
+            }
+            "radiancemeter" => {
+                // As Mitsuba: a film with neither side 1 is refused.
+                if film.width != 1 && film.height != 1 {
+                    let at = films.first().map_or(&node.loc, |f| &f.loc);
+                    return Err(SceneError::at(at, format!("a radiancemeter measures one ray: its film must be 1 × 1 pixels, not {} × {}", film.width, film.height))
+                        .with_help("<film type=\"hdrfilm\"><integer name=\"width\" value=\"1\"/><integer name=\"height\" value=\"1\"/></film>"));
+                }
+                let meter = if props.has("to_world") {
+                    // Given beside to_world, origin and direction are ignored (Mitsuba).
+                    props.vec3_opt("origin")?;
+                    props.vec3_opt("direction")?;
+                    RadianceMeter::from_transform(&to_world)
+                        .ok_or_else(|| props.error_at("to_world", "to_world maps +z to a zero vector: the radiancemeter has no direction"))?
+                } else {
+                    match (props.vec3_opt("origin")?, props.vec3_opt("direction")?) {
+                        (Some(o), Some(d)) => RadianceMeter::from_ray(o, d)
+                            .ok_or_else(|| props.error_at("direction", "the radiancemeter's direction must be a finite, non-zero vector"))?,
+                        (None, None) => RadianceMeter::from_transform(&Transform::IDENTITY)
+                            .ok_or_else(|| SceneError::at(&node.loc, "no direction"))?,
+                        (Some(_), None) => return Err(props.error_at("origin", "a radiancemeter given an origin needs a direction too (or a to_world instead)")),
+                        (None, Some(_)) => return Err(props.error_at("direction", "a radiancemeter given a direction needs an origin too (or a to_world instead)")),
+                    }
+                };
+                Camera::RadianceMeter(meter)
             }
             _ => Camera::Orthographic(Orthographic { to_world, aspect, near_clip, far_clip }),
         };

@@ -6,10 +6,12 @@
 
 pub mod orthographic;
 pub mod perspective;
+pub mod radiancemeter;
 pub mod thinlens;
 
 pub use orthographic::Orthographic;
 pub use perspective::{CameraConnection, Perspective};
+pub use radiancemeter::RadianceMeter;
 pub use thinlens::ThinLens;
 
 use crate::geometry::Ray;
@@ -21,6 +23,8 @@ pub enum Camera {
     Perspective(Perspective),
     Orthographic(Orthographic),
     ThinLens(ThinLens),
+    /// One ray for every film position.
+    RadianceMeter(RadianceMeter),
 }
 
 impl Camera {
@@ -30,6 +34,7 @@ impl Camera {
             Camera::Perspective(c) => c.generate_ray(film),
             Camera::Orthographic(c) => c.generate_ray(film),
             Camera::ThinLens(c) => c.generate_ray(film, Vec2::splat(0.5)),
+            Camera::RadianceMeter(c) => c.generate_ray(),
         }
     }
 
@@ -50,6 +55,7 @@ impl Camera {
             Camera::Perspective(c) => &c.to_world,
             Camera::Orthographic(c) => &c.to_world,
             Camera::ThinLens(c) => &c.to_world,
+            Camera::RadianceMeter(c) => return c.up,
         };
         to_world.vector(Vec3::Y).normalize_or_zero()
     }
