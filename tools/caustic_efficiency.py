@@ -37,6 +37,7 @@ Usage: python3 tools/caustic_efficiency.py [--res 64] [--seconds 1.0] [--runs 3]
 """
 import argparse
 import json
+import math
 import os
 import re
 import statistics
@@ -281,7 +282,7 @@ def main():
             # best methods, whose error comes near it, are not understated.
             # (The pool's sppm reference has no such estimate: not corrected.)
             ref_noise = 0.0
-            if sc["ref"][0] == "path" and "path" in rows and rows["path"]["variance"] == rows["path"]["variance"]:
+            if sc["ref"][0] == "path" and "path" in rows and not math.isnan(rows["path"]["variance"]):
                 ref_spp = max(1, round(sc["ref"][1] * args.ref_scale))
                 ref_noise = rows["path"]["variance"] * rows["path"]["count"] / ref_spp
                 print(f"  the reference's noise (relMSE of a {ref_spp}-spp path render, from path's runs): {ref_noise:.2e}")

@@ -1282,21 +1282,15 @@ impl Loader {
                     return Err(SceneError::at(at, format!("a radiancemeter measures one ray: its film must be 1 × 1 pixels, not {} × {}", film.width, film.height))
                         .with_help("<film type=\"hdrfilm\"><integer name=\"width\" value=\"1\"/><integer name=\"height\" value=\"1\"/></film>"));
                 }
-                let meter = if props.has("to_world") {
-                    // Given beside to_world, origin and direction are ignored (Mitsuba).
-                    props.vec3_opt("origin")?;
-                    props.vec3_opt("direction")?;
-                    RadianceMeter::from_transform(&to_world)
-                        .ok_or_else(|| props.error_at("to_world", "to_world maps +z to a zero vector: the radiancemeter has no direction"))?
-                } else {
-                    match (props.vec3_opt("origin")?, props.vec3_opt("direction")?) {
-                        (Some(o), Some(d)) => RadianceMeter::from_ray(o, d)
-                            .ok_or_else(|| props.error_at("direction", "the radiancemeter's direction must be a finite, non-zero vector"))?,
-                        (None, None) => RadianceMeter::from_transform(&Transform::IDENTITY)
-                            .ok_or_else(|| SceneError::at(&node.loc, "no direction"))?,
-                        (Some(_), None) => return Err(props.error_at("origin", "a radiancemeter given an origin needs a direction too (or a to_world instead)")),
-                        (None, Some(_)) => return Err(props.error_at("direction", "a radiancemeter given a direction needs an origin too (or a to_world instead)")),
-                    }
+                // `to_world` (the identity where absent) wins over origin and
+                // direction, which are read either way (Mitsuba).
+                let meter = match (props.has("to_world"), props.vec3_opt("origin")?, props.vec3_opt("direction")?) {
+                    (true, _, _) | (false, None, None) => RadianceMeter::from_transform(&to_world)
+                        .ok_or_else(|| props.error_at("to_world", "to_world maps +z to a zero vector: the radiancemeter has no direction"))?,
+                    (false, Some(o), Some(d)) => RadianceMeter::from_ray(o, d)
+                        .ok_or_else(|| props.error_at("direction", "the radiancemeter's direction must be a finite, non-zero vector"))?,
+                    (false, Some(_), None) => return Err(props.error_at("origin", "a radiancemeter given an origin needs a direction too (or a to_world instead)")),
+                    (false, None, Some(_)) => return Err(props.error_at("direction", "a radiancemeter given a direction needs an origin too (or a to_world instead)")),
                 };
                 Camera::RadianceMeter(meter)
             }
