@@ -101,12 +101,12 @@ impl VolPath {
                         let mut point = SurfaceInteraction::EMPTY;
                         point.p = p;
                         if let Some((d, weight, pdf, delta)) = sample_light::<S>(scene, &point, None, Some(m), sampler, wl) {
-                            let f = med.phase.eval(wi, d);
+                            let f = med.phase.eval(p, wi, d);
                             let w = if delta { 1.0 } else { mis_power(pdf, f) };
                             result += beta * weight * (f * w);
                         }
                     }
-                    let (wo, pdf) = med.phase.sample(wi, sampler.next_2d());
+                    let (wo, pdf) = med.phase.sample(p, wi, sampler.next_2d());
                     prev = at;
                     prev_pdf = pdf;
                     // Without emitter sampling here, emitters met next count in full.

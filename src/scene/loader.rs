@@ -52,7 +52,7 @@ pub const SAMPLERS: [&str; 7] = crate::sampler::NAMES;
 pub const INTEGRATORS: [&str; 15] =
     ["direct", "path", "ptracer", "bdpt", "sppm", "stokes", "aov", "moment", "vcm", "volpath", "volpathmis", "prbvolpath", "prb", "prb_basic", "depth"];
 pub const MEDIA: [&str; 2] = ["homogeneous", "heterogeneous"];
-pub const PHASES: [&str; 2] = ["isotropic", "hg"];
+pub const PHASES: [&str; 5] = ["isotropic", "hg", "rayleigh", "tabphase", "blendphase"];
 pub const VOLUMES: [&str; 2] = ["constvolume", "gridvolume"];
 
 /// The most samples per pixel, from the scene or from `--spp` (Mitsuba's
@@ -703,10 +703,37 @@ impl Loader {
     }
 
     fn phase(&self, node: &Arc<Node>) -> Result<crate::medium::PhaseFunction> {
+        use crate::medium::PhaseFunction;
         let props = Props::new(node);
         let phase = match node.plugin.as_str() {
-            "isotropic" => crate::medium::PhaseFunction::Isotropic,
-            "hg" => crate::medium::PhaseFunction::HenyeyGreenstein { g: props.float_checked("g", 0.8, |g| g > -1.0 && g < 1.0, "in (-1, 1)")? },
+            "isotropic" => PhaseFunction::Isotropic,
+            "hg" => PhaseFunction::HenyeyGreenstein { g: props.float_checked("g", 0.8, |g| g > -1.0 && g < 1.0, "in (-1, 1)")? },
+            "rayleigh" => PhaseFunction::Rayleigh,
+            "tabphase" => {
+                let text = props.string_req("values")?;
+                let mut values = vec![];
+                for token in text.split([',', ' ', '\t', '\n']).filter(|t| !t.is_empty()) {
+                    let v = token.parse::<f32>().map_err(|_| props.error_at("values", format!("\"values\" holds \"{token}\", which is not a number")))?;
+                    values.push(v);
+                }
+                let table = crate::medium::phase::Tabulated::new(&values).map_err(|e| props.error_at("values", format!("tabphase's \"values\": {e}")))?;
+                PhaseFunction::Tabulated(Arc::new(table))
+            }
+            "blendphase" => {
+                // Mitsuba requires the weight (no default).
+                if props.child_named("weight").is_none() && !props.has("weight") {
+                    return Err(SceneError::at(&node.loc, "blendphase needs a \"weight\" (a float in [0, 1] or a volume)"));
+                }
+                let weight = self.volume_input(&props, "weight", 0.5)?;
+                let nested = props.children_of(Kind::Phase);
+                if nested.len() != 2 {
+                    let loc = nested.get(2).map_or(&node.loc, |c| &c.loc);
+                    return Err(SceneError::at(loc, format!("blendphase takes exactly two nested <phase>s, not {}", nested.len())).with_choices(&PHASES));
+                }
+                let a = self.phase(&self.resolve(nested[0])?)?;
+                let b = self.phase(&self.resolve(nested[1])?)?;
+                PhaseFunction::Blend { weight: Arc::new(weight), phases: Arc::new([a, b]) }
+            }
             _ => return Err(unknown_plugin(node, &PHASES)),
         };
         props.finish()?;
