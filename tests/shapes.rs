@@ -1,7 +1,8 @@
 //! Shapes from real Mitsuba scenes: `serialized` meshes (against the same
 //! mesh as PLY; corrupt files), `shapegroup` + `instance` (against the
-//! flattened copy; memory of many instances; error cases) and `cylinder`
-//! (an area light against a closed form).
+//! flattened copy; memory of many instances; error cases), `merge` (the
+//! image of its shapes on their own) and `cylinder` (an area light against
+//! a closed form).
 //!
 //! `tests/scenes/assets/rectangle_normals_uv.serialized` is Mitsuba's test
 //! file `tests/serialized/rectangle_normals_uv.serialized` from the
@@ -252,6 +253,31 @@ fn instances_render_like_their_flattened_copy() {
     // Removing an instance changes the image (the instances are seen).
     let c = render_passes(&path, Some(&instanced_scene(&PLACEMENTS[1..])), Default::default(), 1, 16);
     assert!(max_abs_diff(&a[0], &c[0]) > 0.05);
+}
+
+/// A `merge` renders as its shapes do on their own, whatever they are
+/// (meshes, an emitting sphere, a nested merge), bit for bit with the same
+/// seed; it takes shapes only and no `to_world`, with located errors.
+#[test]
+fn merge_renders_like_its_shapes() {
+    let dir = temp_dir("merge");
+    write_ply(&dir.join("grid.ply"), &bumpy_grid(10));
+    let path = dir.join("scene.xml");
+    let shapes = "<shape type=\"ply\"><string name=\"filename\" value=\"grid.ply\"/><bsdf type=\"diffuse\"/></shape>
+        <shape type=\"rectangle\"><transform name=\"to_world\"><scale value=\"4\"/><translate z=\"-1\"/></transform></shape>
+        <shape type=\"sphere\"><point name=\"center\" x=\"0.7\" y=\"0.5\" z=\"0.6\"/><float name=\"radius\" value=\"0.2\"/><emitter type=\"area\"><rgb name=\"radiance\" value=\"4\"/></emitter></shape>";
+    let plain = scene(&format!("    {shapes}\n"));
+    let (first, rest) = shapes.split_once('\n').expect("two lines");
+    let merged = scene(&format!("    <shape type=\"merge\" id=\"all\">{first}<shape type=\"merge\">{rest}</shape></shape>\n"));
+    let a = render_passes(&path, Some(&plain), Default::default(), 1, 8);
+    let b = render_passes(&path, Some(&merged), Default::default(), 1, 8);
+    assert_eq!(max_abs_diff(&a[0], &b[0]), 0.0, "a merge changed the image");
+    assert!(mean(&a[0])[0] > 0.01, "the scene is lit");
+
+    let text = scene("    <shape type=\"merge\">\n        <transform name=\"to_world\"><scale value=\"2\"/></transform>\n    </shape>\n");
+    assert_located(&load_err(&path, &text), &text, line_of(&text, "<scale value=\"2\"/>"), &["to_world"]);
+    let text = scene("    <bsdf type=\"diffuse\" id=\"white\"/>\n    <shape type=\"merge\">\n        <ref id=\"white\"/>\n    </shape>\n");
+    assert_located(&load_err(&path, &text), &text, line_of(&text, "id=\"white\"/>"), &["a merge holds shapes", "bsdf"]);
 }
 
 /// 10 000 instances of a 100 000-triangle mesh take the memory of one copy

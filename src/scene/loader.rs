@@ -35,8 +35,8 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-pub const SHAPES: [&str; 13] = [
-    "rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "linearcurve", "bsplinecurve", "sdfgrid", "shapegroup", "instance",
+pub const SHAPES: [&str; 14] = [
+    "rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized", "linearcurve", "bsplinecurve", "sdfgrid", "shapegroup", "instance", "merge",
 ];
 pub const BSDFS: [&str; 20] = [
     "birefringent", "blendbsdf", "bumpmap", "conductor", "dielectric", "diffuse", "mask", "normalmap", "null", "plastic", "polarizer", "pplastic",
@@ -534,6 +534,7 @@ impl Loader {
             }
             "shapegroup" => return self.shapegroup(node).map(|_| ()),
             "instance" => return self.instance(node),
+            "merge" => return self.merge(node),
             _ => {}
         }
         let props = Props::new(node);
@@ -853,6 +854,27 @@ impl Loader {
         let g = self.groups.len() as u32 - 1;
         self.group_index.insert(key, g);
         Ok(g)
+    }
+
+    /// Mitsuba's `merge`: shapes that Mitsuba joins into fewer meshes to
+    /// save memory in its ray tracer. The image is that of the shapes on
+    /// their own, so Snell loads them as if they stood outside it (it takes
+    /// no `to_world`, as Mitsuba's does not).
+    fn merge(&mut self, node: &Arc<Node>) -> Result<()> {
+        let props = Props::new(node);
+        let children = props.children_of(Kind::Shape);
+        let mut members = vec![];
+        for c in children.iter().copied().chain(props.unnamed_refs()) {
+            members.push(self.resolve(c)?);
+        }
+        props.finish()?;
+        for member in members {
+            if member.kind != Kind::Shape {
+                return Err(SceneError::at(&member.loc, format!("a merge holds shapes, not a <{}>", member.kind.tag())));
+            }
+            self.shape(&member)?;
+        }
+        Ok(())
     }
 
     /// Mitsuba's `instance`: a `<ref>` to a shapegroup placed by `to_world`.

@@ -33,7 +33,6 @@ pub fn mitsuba3_plugin(kind: Kind, name: &str) -> Option<&'static str> {
         (Kind::Integrator, "direct_projective" | "prb_projective") => Some("a differentiable integrator; path renders the same image"),
         (Kind::Sensor, "irradiancemeter" | "distant" | "batch") => Some("a measuring or multi-view sensor"),
         (Kind::Shape, "ellipsoids" | "ellipsoidsmesh") => Some("ellipsoid (Gaussian splat) primitives"),
-        (Kind::Shape, "merge") => Some("a merge of meshes"),
         (Kind::Phase, "sggx") => Some("a microflake (SGGX) phase function"),
         (Kind::Texture, "volume") => Some("a 3-D texture read from a volume"),
         _ => None,
