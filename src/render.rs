@@ -757,6 +757,7 @@ pub(crate) fn state_header<S: Spectrum>(scene: &Scene) -> StateHeader {
         complete: true,
         samples_taken: 0,
         invalid_samples: 0,
+        radiance_scale: scene.camera.radiance_scale(),
     }
 }
 

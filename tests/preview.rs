@@ -104,6 +104,7 @@ fn no_state() -> &'static snell::film::FilmState {
             complete: true,
             samples_taken: 0,
             invalid_samples: 0,
+            radiance_scale: 1.0,
         })
     })
 }

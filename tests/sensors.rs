@@ -7,7 +7,9 @@
 //! the image means and within noise in every 8×8 block.
 //!
 //! The radiance meter against closed forms: the sky's radiance seen
-//! directly, and ρ·L off a diffuse plane under a uniform sky.
+//! directly, and ρ·L off a diffuse plane under a uniform sky. The irradiance
+//! meter against closed forms: π·L under an open sky, and the shadow of a
+//! sphere, π·L·(1 − R²/d²).
 
 use crate::common::*;
 use snell::LoadOptions;
@@ -37,7 +39,7 @@ fn tan_half_x(text: &str) -> f32 {
     match scene.camera {
         Camera::Perspective(c) => c.tan_half_x,
         Camera::ThinLens(c) => c.tan_half_x,
-        Camera::Orthographic(_) | Camera::RadianceMeter(_) => panic!("not a perspective camera"),
+        Camera::Orthographic(_) | Camera::RadianceMeter(_) | Camera::IrradianceMeter(_) => panic!("not a perspective camera"),
     }
 }
 
@@ -171,4 +173,81 @@ fn radiancemeter_errors_are_located() {
     // Light paths cannot reach it.
     let e = load(&meter_scene("", (1, 1)).replace(r#"<integrator type="path">"#, r#"<integrator type="ptracer">"#));
     assert!(e.contains("ptracer needs a perspective sensor"), "{e}");
+}
+
+/// An irradiance-meter scene: the meter on `meter_shape` (a shape's type
+/// and contents), a sky of radiance (2, 1, 0.5) and `others`.
+fn irradiance_scene(meter_shape: &str, others: &str) -> String {
+    let (kind, inside) = meter_shape.split_once('|').expect("type|contents");
+    format!(
+        r#"<scene version="3.0.0">
+    <integrator type="path"><integer name="max_depth" value="4"/></integrator>
+    <emitter type="constant"><rgb name="radiance" value="2, 1, 0.5"/></emitter>
+    <shape type="{kind}">
+        {inside}
+        <sensor type="irradiancemeter">
+            <sampler type="independent"><integer name="sample_count" value="256"/></sampler>
+            <film type="hdrfilm"><integer name="width" value="1"/><integer name="height" value="1"/><rfilter type="box"/></film>
+        </sensor>
+    </shape>
+    {others}
+</scene>"#
+    )
+}
+
+/// The irradiance meter against closed forms. Under an open sky every
+/// sample reads π·L exactly, on a rectangle and on a sphere (each point sees
+/// its outer hemisphere). A tiny rectangle facing a black sphere of radius
+/// R at distance d sees the sky except a cap of solid-angle weight
+/// sin²α = R²/d²: E = π·L·(1 − R²/d²).
+#[test]
+fn irradiancemeter_reads_pi_l_and_the_shadow_of_a_sphere() {
+    let pi = std::f64::consts::PI;
+    for shape in ["rectangle|<transform name=\"to_world\"><scale value=\"0.5\"/></transform>", "sphere|<float name=\"radius\" value=\"0.3\"/>"] {
+        let (mean, stderr) = meter_reading(&irradiance_scene(shape, ""), 4, 16);
+        for (c, l) in [2.0, 1.0, 0.5].into_iter().enumerate() {
+            assert!((mean[c] - pi * l).abs() < 1e-5 * pi * l && stderr[c] < 1e-5, "{shape}: channel {c}: {} ± {} against πL = {}", mean[c], stderr[c], pi * l);
+        }
+    }
+    let (r, d) = (0.5f64, 1.5f64);
+    let occluder = format!(
+        r#"<shape type="sphere"><point name="center" x="0" y="0" z="{d}"/><float name="radius" value="{r}"/><bsdf type="diffuse"><rgb name="reflectance" value="0"/></bsdf></shape>"#
+    );
+    let text = irradiance_scene("rectangle|<transform name=\"to_world\"><scale value=\"0.001\"/></transform>", &occluder);
+    let (mean, stderr) = meter_reading(&text, 16, 1024);
+    for (c, l) in [2.0, 1.0, 0.5].into_iter().enumerate() {
+        let want = pi * l * (1.0 - r * r / (d * d));
+        assert!(stderr[c] < 0.01 * want, "channel {c} too noisy: ± {}", stderr[c]);
+        assert!((mean[c] - want).abs() < 4.0 * stderr[c], "channel {c}: {} ± {} against πL(1 − R²/d²) = {want}", mean[c], stderr[c]);
+    }
+}
+
+#[test]
+fn irradiancemeter_errors_are_located() {
+    let path = repo("tests/scenes/irradiancemeter.xml");
+    let load = |text: &str| match snell::load_str(&path, text, &LoadOptions::default()) {
+        Ok(_) => panic!("expected an error:\n{text}"),
+        Err(e) => e.to_string(),
+    };
+    let rect = "rectangle|";
+    // At the top level, with a to_world, beside a top-level sensor, twice.
+    let top = irradiance_scene(rect, "").replace("<shape type=\"rectangle\">", "").replacen("</shape>", "", 1);
+    let e = load(&top);
+    assert!(e.contains("place it inside a <shape>"), "{e}");
+    let e = load(&irradiance_scene(rect, "").replace("<sensor type=\"irradiancemeter\">", "<sensor type=\"irradiancemeter\"><transform name=\"to_world\"><scale value=\"2\"/></transform>"));
+    assert!(e.contains("takes no to_world") && e.contains(":6:"), "{e}");
+    let e = load(&irradiance_scene(rect, r#"<sensor type="perspective"/>"#));
+    assert!(e.contains("more than one <sensor>") && e.contains(":6:"), "{e}");
+    let second = r#"<shape type="sphere"><sensor type="irradiancemeter"/></shape>"#;
+    let e = load(&irradiance_scene(rect, second));
+    assert!(e.contains("more than one irradiancemeter"), "{e}");
+    // Another sensor type inside a shape, and a meter in a shapegroup.
+    let e = load(&irradiance_scene(rect, "").replace("<sensor type=\"irradiancemeter\">", "<sensor type=\"perspective\">"));
+    assert!(e.contains("must be an irradiancemeter, not \"perspective\"") && e.contains(":6:"), "{e}");
+    let grouped = irradiance_scene(rect, "").replace("<shape type=\"rectangle\">", "<shape type=\"shapegroup\"><shape type=\"rectangle\">").replacen("</shape>", "</shape></shape>", 1);
+    let e = load(&grouped);
+    assert!(e.contains("shapegroup cannot carry a sensor"), "{e}");
+    // Light paths cannot reach it.
+    let e = load(&irradiance_scene(rect, "").replace(r#"<integrator type="path">"#, r#"<integrator type="bdpt">"#));
+    assert!(e.contains("bdpt needs a perspective sensor") && e.contains("irradiancemeter"), "{e}");
 }

@@ -605,6 +605,18 @@ pub struct StateHeader {
     /// whose value was NaN or infinite (counted as zero).
     pub samples_taken: u64,
     pub invalid_samples: u64,
+    /// What the camera samples' radiance is multiplied by when developed
+    /// (the sensor's constant sample weight: π for an irradiance meter).
+    #[serde(default = "unit_scale", skip_serializing_if = "is_unit_scale")]
+    pub radiance_scale: f32,
+}
+
+fn unit_scale() -> f32 {
+    1.0
+}
+
+fn is_unit_scale(v: &f32) -> bool {
+    *v == 1.0
 }
 
 const MAGIC: &[u8; 8] = b"SNELLFS\0";
@@ -855,9 +867,10 @@ impl FilmState {
         // unfixed(weight) > 1e-9, without a second conversion and division:
         // dividing by 2^52 is exact, so it is the same test.
         let least = 1e-9 * SCALE;
+        let scale = h.radiance_scale as f64;
         let normalize = |sum: &[i128], weight: i128| {
             let wf = wide_to_f64(weight);
-            let v = Rgb::new((wide_to_f64(sum[0]) / wf) as f32, (wide_to_f64(sum[1]) / wf) as f32, (wide_to_f64(sum[2]) / wf) as f32);
+            let v = Rgb::new((wide_to_f64(sum[0]) / wf * scale) as f32, (wide_to_f64(sum[1]) / wf * scale) as f32, (wide_to_f64(sum[2]) / wf * scale) as f32);
             if wf > least && v.is_finite() { v } else { Rgb::BLACK }
         };
         let paths = h.samples_taken.max(1) as f64;
@@ -1029,6 +1042,7 @@ mod tests {
             complete: true,
             samples_taken: 0,
             invalid_samples: 0,
+            radiance_scale: 1.0,
         }
     }
 

@@ -26,7 +26,7 @@ use crate::integrator::sppm::Photons as SppmPhotons;
 use crate::math::Transform;
 use crate::sampler::SamplerSpec;
 use crate::sensor::perspective::{focal_length_fov, horizontal_fov, parse_focal_length};
-use crate::sensor::{Camera, Orthographic, Perspective, RadianceMeter, ThinLens};
+use crate::sensor::{Camera, IrradianceMeter, Orthographic, Perspective, RadianceMeter, ThinLens};
 use crate::spectrum::{Emission, Rgb};
 use crate::texture::bitmap::{self, Bitmap};
 use crate::texture::{Checkerboard, MeshAttributeTexture, Texture, uv_transform};
@@ -45,7 +45,7 @@ pub const BSDFS: [&str; 20] = [
 ];
 pub const TEXTURES: [&str; 4] = ["bitmap", "checkerboard", "mesh_attribute", "rawconstant"];
 pub const EMITTERS: [&str; 7] = ["area", "point", "spot", "constant", "directional", "envmap", "projector"];
-pub const SENSORS: [&str; 4] = ["perspective", "orthographic", "thinlens", "radiancemeter"];
+pub const SENSORS: [&str; 5] = ["perspective", "orthographic", "thinlens", "radiancemeter", "irradiancemeter"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
 pub const SAMPLERS: [&str; 7] = crate::sampler::NAMES;
@@ -177,6 +177,8 @@ struct Loader {
     instances: Vec<(Transform, u32)>,
     /// Building the members of a shape group.
     in_group: bool,
+    /// A sensor nested in a shape (an irradiance meter) and the shape's index.
+    shape_sensor: Option<(Arc<Node>, u32)>,
     /// `mesh_attribute` textures, resolved against the meshes once all
     /// are loaded, with the location of their `name`.
     mesh_attribute_textures: std::cell::RefCell<Vec<(Arc<MeshAttributeTexture>, super::Location)>>,
@@ -305,6 +307,7 @@ impl Loader {
             group_index: HashMap::new(),
             instances: vec![],
             in_group: false,
+            shape_sensor: None,
             mesh_attribute_textures: Default::default(),
             reads_uv: Default::default(),
             film_width: None,
@@ -384,7 +387,7 @@ impl Loader {
                     if sensor.is_some() {
                         return Err(SceneError::at(&node.loc, "the scene has more than one <sensor>; Snell renders exactly one"));
                     }
-                    sensor = Some(self.sensor(&node)?);
+                    sensor = Some(self.sensor(&node, None)?);
                 }
                 Kind::Integrator => {
                     if integrator.is_some() {
@@ -408,7 +411,14 @@ impl Loader {
                 Kind::Scene => return Err(SceneError::at(&node.loc, "nested <scene> elements are not allowed")),
             }
         }
-        let (camera, film, mut sampler) =
+        let sensor = match (sensor, self.shape_sensor.clone()) {
+            (Some(_), Some((meter, _))) => {
+                return Err(SceneError::at(&meter.loc, "the scene has more than one <sensor> (this one in a shape, and one at the top); Snell renders exactly one"));
+            }
+            (None, Some((meter, shape))) => Some(self.sensor(&meter, Some(&self.shapes[shape as usize]))?),
+            (sensor, None) => sensor,
+        };
+        let (mut camera, film, mut sampler) =
             sensor.ok_or_else(|| SceneError::at(&root.loc, "the scene has no <sensor>").with_help("add e.g. <sensor type=\"perspective\">…</sensor>"))?;
         if let Some(spp) = options.spp {
             if !(1..=MAX_SPP).contains(&spp) {
@@ -429,13 +439,13 @@ impl Loader {
         if let (Integrator::Particle(_), Some(loc)) = (&integrator, &integrator_loc) {
             // A light path must start somewhere finite and end in a pinhole.
             if !matches!(camera, Camera::Perspective(_)) {
-                return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic, thin-lens or radiancemeter sensor)")
+                return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic, thin-lens, radiancemeter or irradiancemeter sensor)")
                     .with_choices(&["perspective"]));
             }
         }
         if let (Integrator::Vcm(_), Some(loc)) = (&integrator, &integrator_loc) {
             if !matches!(camera, Camera::Perspective(_)) {
-                return Err(SceneError::at(loc, "vcm needs a perspective sensor (light subpaths cannot be connected to an orthographic, thin-lens or radiancemeter sensor)")
+                return Err(SceneError::at(loc, "vcm needs a perspective sensor (light subpaths cannot be connected to an orthographic, thin-lens, radiancemeter or irradiancemeter sensor)")
                     .with_choices(&["perspective"]));
             }
             if self.emitters.iter().any(|e| matches!(e, Emitter::Projector(_))) {
@@ -446,7 +456,7 @@ impl Loader {
         if let (Integrator::Bdpt(_), Some(loc)) = (&integrator, &integrator_loc) {
             // Light subpaths end in a pinhole.
             if !matches!(camera, Camera::Perspective(_)) {
-                return Err(SceneError::at(loc, "bdpt needs a perspective sensor (light subpaths cannot be connected to an orthographic, thin-lens or radiancemeter sensor)")
+                return Err(SceneError::at(loc, "bdpt needs a perspective sensor (light subpaths cannot be connected to an orthographic, thin-lens, radiancemeter or irradiancemeter sensor)")
                     .with_choices(&["perspective"]));
             }
             if self.emitters.iter().any(|e| matches!(e, Emitter::Projector(_))) {
@@ -471,6 +481,10 @@ impl Loader {
         // attribute tables and the emitters' samplers read them.
         accel.store_meshes_in_leaf_order(&mut self.shapes);
         self.resolve_mesh_attributes()?;
+        // The meter samples its shape as rendered (vertex normals computed).
+        if let (Camera::IrradianceMeter(meter), Some((_, shape))) = (&mut camera, &self.shape_sensor) {
+            meter.shape = Arc::new(self.shapes[*shape as usize].clone());
+        }
         // Unless the integrator names one: bvh, or for light paths (which
         // start with no shading point to weigh emitters by) power.
         let light_sampling = self.light_sampling.get().unwrap_or(match integrator {
@@ -579,6 +593,7 @@ impl Loader {
 
         let mut bsdf_nodes = self.nested(&props, Kind::Bsdf)?;
         let mut emitter_nodes = self.nested(&props, Kind::Emitter)?;
+        let sensor_nodes = self.nested(&props, Kind::Sensor)?;
         // `<ref name="bsdf" id="…"/>` (as Blender's exporter and Mitsuba's
         // own scenes write it) is the same as an unnamed reference.
         let named_refs = ["bsdf", "emitter"].into_iter().filter_map(|n| props.child_named(n)).filter(|c| matches!(c.target, ChildTarget::Ref(_)));
@@ -598,6 +613,24 @@ impl Loader {
         }
         if emitter_nodes.len() > 1 {
             return Err(SceneError::at(&emitter_nodes[1].loc, "a shape takes at most one emitter"));
+        }
+        if let Some(sensor) = sensor_nodes.first() {
+            if sensor.plugin != "irradiancemeter" {
+                return Err(SceneError::at(&sensor.loc, format!("a sensor inside a shape must be an irradiancemeter, not \"{}\"", sensor.plugin))
+                    .with_choices(&["irradiancemeter"]));
+            }
+            if let Some(other) = sensor_nodes.get(1).or(self.shape_sensor.as_ref().map(|(n, _)| n)) {
+                let second = if sensor_nodes.len() > 1 { other } else { sensor };
+                return Err(SceneError::at(&second.loc, "the scene has more than one irradiancemeter; Snell renders exactly one sensor"));
+            }
+            if self.in_group {
+                return Err(SceneError::at(&sensor.loc, "a shape inside a shapegroup cannot carry a sensor (as in Mitsuba)"));
+            }
+            if matches!(geometry, ShapeGeometry::Curves(_) | ShapeGeometry::SdfGrid(_)) {
+                return Err(SceneError::at(&sensor.loc, format!("an irradiancemeter cannot sit on a {}: its surface cannot be sampled by area", node.plugin))
+                    .with_help("place the meter on a mesh, sphere, disk, rectangle or cylinder"));
+            }
+            self.shape_sensor = Some((sensor.clone(), shape_index));
         }
         if let (ShapeGeometry::Curves(_) | ShapeGeometry::SdfGrid(_), Some(e)) = (&geometry, emitter_nodes.first()) {
             return Err(SceneError::at(&e.loc, format!("a {} cannot emit: its surface cannot be sampled by area (nor can Mitsuba's)", node.plugin))
@@ -1259,7 +1292,8 @@ impl Loader {
 
     // -------------------------------------------------------------- sensors
 
-    fn sensor(&self, node: &Arc<Node>) -> Result<(Camera, FilmSpec, SamplerSpec)> {
+    /// A sensor; `on_shape` is the shape it is nested in (an irradiance meter's).
+    fn sensor(&self, node: &Arc<Node>, on_shape: Option<&Shape>) -> Result<(Camera, FilmSpec, SamplerSpec)> {
         let props = Props::new(node);
         if !SENSORS.contains(&node.plugin.as_str()) {
             return Err(unknown_plugin(node, &SENSORS));
@@ -1342,6 +1376,16 @@ impl Loader {
                     (false, None, Some(_)) => return Err(props.error_at("direction", "a radiancemeter given a direction needs an origin too (or a to_world instead)")),
                 };
                 Camera::RadianceMeter(meter)
+            }
+            "irradiancemeter" => {
+                let Some(shape) = on_shape else {
+                    return Err(SceneError::at(&node.loc, "an irradiancemeter measures the shape it is nested in: place it inside a <shape>")
+                        .with_help("<shape type=\"rectangle\"><sensor type=\"irradiancemeter\">…</sensor></shape>"));
+                };
+                if props.has("to_world") {
+                    return Err(props.error_at("to_world", "an irradiancemeter takes no to_world: it sits on its shape (transform the shape instead)"));
+                }
+                Camera::IrradianceMeter(IrradianceMeter { shape: Arc::new(shape.clone()) })
             }
             _ => Camera::Orthographic(Orthographic { to_world, aspect, near_clip, far_clip }),
         };

@@ -4,11 +4,13 @@
 //! Mitsuba, the camera looks along +z of its `to_world`, with +x of camera
 //! space at the image's left and +y at its top.
 
+pub mod irradiancemeter;
 pub mod orthographic;
 pub mod perspective;
 pub mod radiancemeter;
 pub mod thinlens;
 
+pub use irradiancemeter::IrradianceMeter;
 pub use orthographic::Orthographic;
 pub use perspective::{CameraConnection, Perspective};
 pub use radiancemeter::RadianceMeter;
@@ -25,6 +27,8 @@ pub enum Camera {
     ThinLens(ThinLens),
     /// One ray for every film position.
     RadianceMeter(RadianceMeter),
+    /// Rays from a shape's surface, each weighted by π.
+    IrradianceMeter(IrradianceMeter),
 }
 
 impl Camera {
@@ -35,6 +39,8 @@ impl Camera {
             Camera::Orthographic(c) => c.generate_ray(film),
             Camera::ThinLens(c) => c.generate_ray(film, Vec2::splat(0.5)),
             Camera::RadianceMeter(c) => c.generate_ray(),
+            // The film position places the point; the direction is the normal.
+            Camera::IrradianceMeter(c) => c.sample_ray(film, Vec2::splat(0.5)),
         }
     }
 
@@ -44,7 +50,20 @@ impl Camera {
     pub fn sample_ray(&self, film: Vec2, sampler: &mut Sampler) -> Ray {
         match self {
             Camera::ThinLens(c) => c.generate_ray(film, sampler.next_2d()),
+            Camera::IrradianceMeter(c) => {
+                let u_pos = sampler.next_2d();
+                c.sample_ray(u_pos, sampler.next_2d())
+            }
             _ => self.generate_ray(film),
+        }
+    }
+
+    /// What the radiance of each camera sample is multiplied by: π for an
+    /// irradiance meter (applied when the film is developed), else 1.
+    pub fn radiance_scale(&self) -> f32 {
+        match self {
+            Camera::IrradianceMeter(_) => IrradianceMeter::WEIGHT,
+            _ => 1.0,
         }
     }
 
@@ -56,6 +75,7 @@ impl Camera {
             Camera::Orthographic(c) => &c.to_world,
             Camera::ThinLens(c) => &c.to_world,
             Camera::RadianceMeter(c) => return c.up,
+            Camera::IrradianceMeter(c) => return c.up(),
         };
         to_world.vector(Vec3::Y).normalize_or_zero()
     }
