@@ -203,9 +203,9 @@ fn mitsuba3_plugins_snell_lacks_are_named_as_such() {
         assert_error(&e, &scene_path(), 9, 5, "<", message);
         assert_help(&e, choices);
     }
-    let text = HEAD.replace("type=\"perspective\"", "type=\"distant\"") + "</scene>\n";
+    let text = HEAD.replace("type=\"perspective\"", "type=\"batch\"") + "</scene>\n";
     let e = load_err(&text);
-    assert_error(&e, &scene_path(), 2, 5, "<sensor", "sensor plugin \"distant\" (a measuring or multi-view sensor) is not supported yet");
+    assert_error(&e, &scene_path(), 2, 5, "<sensor", "sensor plugin \"batch\" (a multi-view sensor) is not supported yet");
 }
 
 #[test]

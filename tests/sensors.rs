@@ -39,7 +39,7 @@ fn tan_half_x(text: &str) -> f32 {
     match scene.camera {
         Camera::Perspective(c) => c.tan_half_x,
         Camera::ThinLens(c) => c.tan_half_x,
-        Camera::Orthographic(_) | Camera::RadianceMeter(_) | Camera::IrradianceMeter(_) => panic!("not a perspective camera"),
+        _ => panic!("not a perspective camera"),
     }
 }
 
@@ -250,4 +250,67 @@ fn irradiancemeter_errors_are_located() {
     // Light paths cannot reach it.
     let e = load(&irradiance_scene(rect, "").replace(r#"<integrator type="path">"#, r#"<integrator type="bdpt">"#));
     assert!(e.contains("bdpt needs a perspective sensor") && e.contains("irradiancemeter"), "{e}");
+}
+
+/// A distant-sensor scene: the sensor looking straight down with `target`,
+/// over the radiancemeter scene's 100 × 100 diffuse plane (reflectance
+/// (0.2, 0.5, 0.8)) under a sky of radiance (2, 1, 0.5).
+fn distant_scene(target: &str, film: (u32, u32)) -> String {
+    let (w, h) = film;
+    meter_scene("", (1, 1)).replace(
+        r#"<sensor type="radiancemeter">
+        
+        <sampler type="independent"><integer name="sample_count" value="256"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="1"/><integer name="height" value="1"/><rfilter type="box"/></film>"#,
+        &format!(
+            r#"<sensor type="distant">
+        <vector name="direction" x="0" y="0" z="-1"/>{target}
+        <sampler type="independent"><integer name="sample_count" value="256"/></sampler>
+        <film type="hdrfilm"><integer name="width" value="{w}"/><integer name="height" value="{h}"/><rfilter type="box"/></film>"#
+        ),
+    )
+}
+
+/// The distant sensor against closed forms. Aimed at a small rectangle or
+/// a point on the plane, every ray meets the plane: ρ·L. With no target the
+/// rays cross the disk of the scene's bounding sphere (radius a√2 for the
+/// plane of half-side a), of which the plane covers 2/π; the others see the
+/// sky below: (2/π)·ρ·L + (1 − 2/π)·L.
+#[test]
+fn distant_sensor_reads_a_lit_plane_and_its_bounding_disk() {
+    let (rho, l) = ([0.2, 0.5, 0.8], [2.0, 1.0, 0.5]);
+    let frac = 2.0 / std::f64::consts::PI;
+    let cases = [
+        (r#"<shape type="rectangle" name="target"><transform name="to_world"><scale value="0.5"/></transform></shape>"#, [rho[0] * l[0], rho[1] * l[1], rho[2] * l[2]]),
+        (r#"<point name="target" x="0.3" y="-0.2" z="0"/>"#, [rho[0] * l[0], rho[1] * l[1], rho[2] * l[2]]),
+        ("", [0, 1, 2].map(|c| frac * rho[c] * l[c] + (1.0 - frac) * l[c])),
+    ];
+    for (target, want) in cases {
+        let text = distant_scene(target, (1, 1));
+        assert!(text.contains("type=\"distant\""), "the sensor was replaced");
+        let (mean, stderr) = meter_reading(&text, 16, 1024);
+        for c in 0..3 {
+            assert!(stderr[c] < 0.01 * want[c], "{target}: channel {c} too noisy: ± {}", stderr[c]);
+            assert!((mean[c] - want[c]).abs() < 4.0 * stderr[c] + 1e-4, "{target:?}: channel {c}: {} ± {} against {}", mean[c], stderr[c], want[c]);
+        }
+    }
+}
+
+#[test]
+fn distant_sensor_errors_are_located() {
+    let path = repo("tests/scenes/distant.xml");
+    let load = |text: &str| match snell::load_str(&path, text, &LoadOptions::default()) {
+        Ok(_) => panic!("expected an error:\n{text}"),
+        Err(e) => e.to_string(),
+    };
+    let e = load(&distant_scene("", (1, 4)));
+    assert!(e.contains("film must be 1 × 1 pixels, not 1 × 4"), "{e}");
+    let e = load(&distant_scene(r#"<transform name="to_world"><scale value="2"/></transform>"#, (1, 1)));
+    assert!(e.contains("a direction or a to_world, not both") && e.contains(":4:"), "{e}");
+    let e = load(&distant_scene("", (1, 1)).replace(r#"x="0" y="0" z="-1""#, r#"x="0" y="0" z="0""#));
+    assert!(e.contains("finite, non-zero vector"), "{e}");
+    let e = load(&distant_scene(r#"<bsdf type="diffuse" name="target"/>"#, (1, 1)));
+    assert!(e.contains("a point or a <shape>, not a <bsdf>"), "{e}");
+    let e = load(&distant_scene(r#"<shape type="sphere" name="target"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>"#, (1, 1)));
+    assert!(e.contains("one plain shape"), "{e}");
 }

@@ -26,7 +26,7 @@ use crate::integrator::sppm::Photons as SppmPhotons;
 use crate::math::Transform;
 use crate::sampler::SamplerSpec;
 use crate::sensor::perspective::{focal_length_fov, horizontal_fov, parse_focal_length};
-use crate::sensor::{Camera, IrradianceMeter, Orthographic, Perspective, RadianceMeter, ThinLens};
+use crate::sensor::{Camera, Distant, DistantTarget, IrradianceMeter, Orthographic, Perspective, RadianceMeter, ThinLens};
 use crate::spectrum::{Emission, Rgb};
 use crate::texture::bitmap::{self, Bitmap};
 use crate::texture::{Checkerboard, MeshAttributeTexture, Texture, uv_transform};
@@ -45,7 +45,7 @@ pub const BSDFS: [&str; 20] = [
 ];
 pub const TEXTURES: [&str; 4] = ["bitmap", "checkerboard", "mesh_attribute", "rawconstant"];
 pub const EMITTERS: [&str; 7] = ["area", "point", "spot", "constant", "directional", "envmap", "projector"];
-pub const SENSORS: [&str; 5] = ["perspective", "orthographic", "thinlens", "radiancemeter", "irradiancemeter"];
+pub const SENSORS: [&str; 6] = ["perspective", "orthographic", "thinlens", "radiancemeter", "irradiancemeter", "distant"];
 pub const FILMS: [&str; 1] = ["hdrfilm"];
 pub const RFILTERS: [&str; 6] = ["box", "tent", "gaussian", "mitchell", "catmullrom", "lanczos"];
 pub const SAMPLERS: [&str; 7] = crate::sampler::NAMES;
@@ -415,7 +415,10 @@ impl Loader {
             (Some(_), Some((meter, _))) => {
                 return Err(SceneError::at(&meter.loc, "the scene has more than one <sensor> (this one in a shape, and one at the top); Snell renders exactly one"));
             }
-            (None, Some((meter, shape))) => Some(self.sensor(&meter, Some(&self.shapes[shape as usize]))?),
+            (None, Some((meter, shape))) => {
+                let shape = self.shapes[shape as usize].clone();
+                Some(self.sensor(&meter, Some(&shape))?)
+            }
             (sensor, None) => sensor,
         };
         let (mut camera, film, mut sampler) =
@@ -439,13 +442,13 @@ impl Loader {
         if let (Integrator::Particle(_), Some(loc)) = (&integrator, &integrator_loc) {
             // A light path must start somewhere finite and end in a pinhole.
             if !matches!(camera, Camera::Perspective(_)) {
-                return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic, thin-lens, radiancemeter or irradiancemeter sensor)")
+                return Err(SceneError::at(loc, "ptracer needs a perspective sensor (light paths cannot be connected to an orthographic, thin-lens, radiancemeter, irradiancemeter or distant sensor)")
                     .with_choices(&["perspective"]));
             }
         }
         if let (Integrator::Vcm(_), Some(loc)) = (&integrator, &integrator_loc) {
             if !matches!(camera, Camera::Perspective(_)) {
-                return Err(SceneError::at(loc, "vcm needs a perspective sensor (light subpaths cannot be connected to an orthographic, thin-lens, radiancemeter or irradiancemeter sensor)")
+                return Err(SceneError::at(loc, "vcm needs a perspective sensor (light subpaths cannot be connected to an orthographic, thin-lens, radiancemeter, irradiancemeter or distant sensor)")
                     .with_choices(&["perspective"]));
             }
             if self.emitters.iter().any(|e| matches!(e, Emitter::Projector(_))) {
@@ -456,7 +459,7 @@ impl Loader {
         if let (Integrator::Bdpt(_), Some(loc)) = (&integrator, &integrator_loc) {
             // Light subpaths end in a pinhole.
             if !matches!(camera, Camera::Perspective(_)) {
-                return Err(SceneError::at(loc, "bdpt needs a perspective sensor (light subpaths cannot be connected to an orthographic, thin-lens, radiancemeter or irradiancemeter sensor)")
+                return Err(SceneError::at(loc, "bdpt needs a perspective sensor (light subpaths cannot be connected to an orthographic, thin-lens, radiancemeter, irradiancemeter or distant sensor)")
                     .with_choices(&["perspective"]));
             }
             if self.emitters.iter().any(|e| matches!(e, Emitter::Projector(_))) {
@@ -481,6 +484,10 @@ impl Loader {
         // attribute tables and the emitters' samplers read them.
         accel.store_meshes_in_leaf_order(&mut self.shapes);
         self.resolve_mesh_attributes()?;
+        if let Camera::Distant(d) = &mut camera {
+            let (lo, hi) = accel.bounds(&self.shapes);
+            d.set_bounds(lo, hi);
+        }
         // The meter samples its shape as rendered (vertex normals computed).
         if let (Camera::IrradianceMeter(meter), Some((_, shape))) = (&mut camera, &self.shape_sensor) {
             meter.shape = Arc::new(self.shapes[*shape as usize].clone());
@@ -889,6 +896,30 @@ impl Loader {
         Ok(g)
     }
 
+    /// A shape that only aims a sensor's rays (a distant sensor's target):
+    /// built as any shape, then taken out of the scene.
+    fn detached_shape(&mut self, node: &Arc<Node>) -> Result<Shape> {
+        let first = self.shapes.len();
+        let (emitters, sensor) = (self.emitters.len(), self.shape_sensor.is_some());
+        self.shape(node)?;
+        if self.shapes.len() != first + 1 || self.emitters.len() != emitters || self.shape_sensor.is_some() != sensor {
+            return Err(SceneError::at(&node.loc, "a sensor's target must be one plain shape (no emitter, sensor, group or merge)")
+                .with_choices(&["rectangle", "cube", "disk", "sphere", "cylinder", "obj", "ply", "serialized"]));
+        }
+        let Some(mut shape) = self.shapes.pop() else {
+            return Err(SceneError::at(&node.loc, "the target shape was not built"));
+        };
+        self.top_shapes.retain(|&i| i as usize != first);
+        // Its vertex normals (if any were being computed) are not needed to aim rays.
+        let pending: Vec<_> = self.pending_normals.take().into_iter().filter(|(i, _)| *i != first).collect();
+        self.pending_normals.replace(pending);
+        if let ShapeGeometry::SdfGrid(_) | ShapeGeometry::Curves(_) = shape.geometry {
+            return Err(SceneError::at(&node.loc, format!("a {} cannot be a target: its surface cannot be sampled by area", node.plugin)));
+        }
+        shape.emitter = None;
+        Ok(shape)
+    }
+
     /// Mitsuba's `merge`: shapes that Mitsuba joins into fewer meshes to
     /// save memory in its ray tracer. The image is that of the shapes on
     /// their own, so Snell loads them as if they stood outside it (it takes
@@ -1293,7 +1324,7 @@ impl Loader {
     // -------------------------------------------------------------- sensors
 
     /// A sensor; `on_shape` is the shape it is nested in (an irradiance meter's).
-    fn sensor(&self, node: &Arc<Node>, on_shape: Option<&Shape>) -> Result<(Camera, FilmSpec, SamplerSpec)> {
+    fn sensor(&mut self, node: &Arc<Node>, on_shape: Option<&Shape>) -> Result<(Camera, FilmSpec, SamplerSpec)> {
         let props = Props::new(node);
         if !SENSORS.contains(&node.plugin.as_str()) {
             return Err(unknown_plugin(node, &SENSORS));
@@ -1386,6 +1417,53 @@ impl Loader {
                     return Err(props.error_at("to_world", "an irradiancemeter takes no to_world: it sits on its shape (transform the shape instead)"));
                 }
                 Camera::IrradianceMeter(IrradianceMeter { shape: Arc::new(shape.clone()) })
+            }
+            "distant" => {
+                // As Mitsuba: one pixel exactly.
+                if (film.width, film.height) != (1, 1) {
+                    let at = films.first().map_or(&node.loc, |f| &f.loc);
+                    return Err(SceneError::at(at, format!("a distant sensor measures one value: its film must be 1 × 1 pixels, not {} × {}", film.width, film.height))
+                        .with_help("<film type=\"hdrfilm\"><integer name=\"width\" value=\"1\"/><integer name=\"height\" value=\"1\"/></film>"));
+                }
+                let frame = match props.vec3_opt("direction")? {
+                    Some(_) if props.has("to_world") => {
+                        return Err(props.error_at("direction", "a distant sensor takes a direction or a to_world, not both"));
+                    }
+                    Some(d) => {
+                        let d = d.normalize_or_zero();
+                        if d == Vec3::ZERO || !d.is_finite() {
+                            return Err(props.error_at("direction", "the distant sensor's direction must be a finite, non-zero vector"));
+                        }
+                        // Mitsuba's frame: up is the direction's second tangent.
+                        Transform::look_at(Vec3::ZERO, d, crate::math::Frame::from_normal(d).t)
+                            .ok_or_else(|| props.error_at("direction", "the distant sensor's direction gives no frame"))?
+                    }
+                    None => to_world,
+                };
+                let direction = frame.vector(Vec3::Z).normalize_or_zero();
+                if direction == Vec3::ZERO || !direction.is_finite() {
+                    return Err(props.error_at("to_world", "to_world maps +z to a zero vector: the distant sensor has no direction"));
+                }
+                let target = match (props.vec3_opt("target"), props.child_named("target")) {
+                    (Ok(Some(p)), _) => DistantTarget::Point(p),
+                    (_, Some(child)) => {
+                        let target = self.resolve(child)?;
+                        if target.kind != Kind::Shape {
+                            return Err(SceneError::at(&child.loc, format!("a distant sensor's target is a point or a <shape>, not a <{}>", target.kind.tag())));
+                        }
+                        DistantTarget::Shape(Arc::new(self.detached_shape(&target)?))
+                    }
+                    (Err(e), None) => return Err(e),
+                    (Ok(None), None) => DistantTarget::BoundingDisk,
+                };
+                Camera::Distant(Distant {
+                    direction,
+                    x_axis: frame.vector(Vec3::X),
+                    y_axis: frame.vector(Vec3::Y),
+                    target,
+                    center: Vec3::ZERO,
+                    radius: 1.0,
+                })
             }
             _ => Camera::Orthographic(Orthographic { to_world, aspect, near_clip, far_clip }),
         };

@@ -31,7 +31,7 @@ pub fn mitsuba3_plugin(kind: Kind, name: &str) -> Option<&'static str> {
         (Kind::Bsdf, "measured" | "measured_polarized") => Some("a measured (tabulated) BSDF"),
         (Kind::Film, "specfilm") => Some("a film of spectral sensitivities"),
         (Kind::Integrator, "direct_projective" | "prb_projective") => Some("a differentiable integrator; path renders the same image"),
-        (Kind::Sensor, "distant" | "batch") => Some("a measuring or multi-view sensor"),
+        (Kind::Sensor, "batch") => Some("a multi-view sensor"),
         (Kind::Shape, "ellipsoids" | "ellipsoidsmesh") => Some("ellipsoid (Gaussian splat) primitives"),
         (Kind::Phase, "sggx") => Some("a microflake (SGGX) phase function"),
         (Kind::Texture, "volume") => Some("a 3-D texture read from a volume"),

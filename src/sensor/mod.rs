@@ -4,12 +4,14 @@
 //! Mitsuba, the camera looks along +z of its `to_world`, with +x of camera
 //! space at the image's left and +y at its top.
 
+pub mod distant;
 pub mod irradiancemeter;
 pub mod orthographic;
 pub mod perspective;
 pub mod radiancemeter;
 pub mod thinlens;
 
+pub use distant::{Distant, DistantTarget};
 pub use irradiancemeter::IrradianceMeter;
 pub use orthographic::Orthographic;
 pub use perspective::{CameraConnection, Perspective};
@@ -29,6 +31,8 @@ pub enum Camera {
     RadianceMeter(RadianceMeter),
     /// Rays from a shape's surface, each weighted by π.
     IrradianceMeter(IrradianceMeter),
+    /// Parallel rays from outside the scene onto a target.
+    Distant(Distant),
 }
 
 impl Camera {
@@ -41,6 +45,8 @@ impl Camera {
             Camera::RadianceMeter(c) => c.generate_ray(),
             // The film position places the point; the direction is the normal.
             Camera::IrradianceMeter(c) => c.sample_ray(film, Vec2::splat(0.5)),
+            // The film position places the target point.
+            Camera::Distant(c) => c.sample_ray(film),
         }
     }
 
@@ -54,6 +60,7 @@ impl Camera {
                 let u_pos = sampler.next_2d();
                 c.sample_ray(u_pos, sampler.next_2d())
             }
+            Camera::Distant(c) => c.sample_ray(sampler.next_2d()),
             _ => self.generate_ray(film),
         }
     }
@@ -76,6 +83,7 @@ impl Camera {
             Camera::ThinLens(c) => &c.to_world,
             Camera::RadianceMeter(c) => return c.up,
             Camera::IrradianceMeter(c) => return c.up(),
+            Camera::Distant(c) => return c.up(),
         };
         to_world.vector(Vec3::Y).normalize_or_zero()
     }
