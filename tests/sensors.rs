@@ -155,13 +155,19 @@ fn radiancemeter_reads_the_sky_and_a_lit_diffuse_plane() {
     }
 }
 
+/// The error loading `text` (as the file `name`) gives, as text.
+#[track_caller]
+fn load_error(name: &str, text: &str) -> String {
+    match snell::load_str(&repo(name), text, &LoadOptions::default()) {
+        Ok(_) => panic!("expected an error:\n{text}"),
+        Err(e) => e.to_string(),
+    }
+}
+
 #[test]
 fn radiancemeter_errors_are_located() {
     let path = repo("tests/scenes/radiancemeter.xml");
-    let load = |text: &str| match snell::load_str(&path, text, &LoadOptions::default()) {
-        Ok(_) => panic!("expected an error:\n{text}"),
-        Err(e) => e.to_string(),
-    };
+    let load = |text: &str| load_error("tests/scenes/radiancemeter.xml", text);
     let e = load(&meter_scene("", (2, 3)));
     assert!(e.contains("film must be 1 × 1 pixels, not 2 × 3") && e.contains(":6:"), "{e}");
     let e = load(&meter_scene(r#"<point name="origin" x="0" y="0" z="1"/>"#, (1, 1)));
@@ -224,11 +230,7 @@ fn irradiancemeter_reads_pi_l_and_the_shadow_of_a_sphere() {
 
 #[test]
 fn irradiancemeter_errors_are_located() {
-    let path = repo("tests/scenes/irradiancemeter.xml");
-    let load = |text: &str| match snell::load_str(&path, text, &LoadOptions::default()) {
-        Ok(_) => panic!("expected an error:\n{text}"),
-        Err(e) => e.to_string(),
-    };
+    let load = |text: &str| load_error("tests/scenes/irradiancemeter.xml", text);
     let rect = "rectangle|";
     // At the top level, with a to_world, beside a top-level sensor, twice.
     let top = irradiance_scene(rect, "").replace("<shape type=\"rectangle\">", "").replacen("</shape>", "", 1);
@@ -298,11 +300,7 @@ fn distant_sensor_reads_a_lit_plane_and_its_bounding_disk() {
 
 #[test]
 fn distant_sensor_errors_are_located() {
-    let path = repo("tests/scenes/distant.xml");
-    let load = |text: &str| match snell::load_str(&path, text, &LoadOptions::default()) {
-        Ok(_) => panic!("expected an error:\n{text}"),
-        Err(e) => e.to_string(),
-    };
+    let load = |text: &str| load_error("tests/scenes/distant.xml", text);
     let e = load(&distant_scene("", (1, 4)));
     assert!(e.contains("film must be 1 × 1 pixels, not 1 × 4"), "{e}");
     let e = load(&distant_scene(r#"<transform name="to_world"><scale value="2"/></transform>"#, (1, 1)));
