@@ -143,6 +143,9 @@ impl NativeScene {
             snell::sensor::Camera::Perspective(_) => "perspective",
             snell::sensor::Camera::Orthographic(_) => "orthographic",
             snell::sensor::Camera::ThinLens(_) => "thinlens",
+            snell::sensor::Camera::RadianceMeter(_) => "radiancemeter",
+            snell::sensor::Camera::IrradianceMeter(_) => "irradiancemeter",
+            snell::sensor::Camera::Distant(_) => "distant",
             // Sensors added to the renderer later.
             #[allow(unreachable_patterns)]
             _ => "other",
