@@ -51,12 +51,7 @@ impl PhaseFunction {
             PhaseFunction::HenyeyGreenstein { g } => hg(*g, cos),
             PhaseFunction::Rayleigh => rayleigh(cos),
             PhaseFunction::Tabulated(t) => t.pdf(cos) / (2.0 * PI),
-            PhaseFunction::Blend { weight, phases } => {
-                let w = blend_weight(weight, p);
-                let a = if w < 1.0 { phases[0].eval(p, wi, wo) } else { 0.0 };
-                let b = if w > 0.0 { phases[1].eval(p, wi, wo) } else { 0.0 };
-                (1.0 - w) * a + w * b
-            }
+            PhaseFunction::Blend { weight, phases } => blend(blend_weight(weight, p), phases, p, wi, wo),
         }
     }
 
@@ -95,7 +90,7 @@ impl PhaseFunction {
                 let w = blend_weight(weight, p);
                 let (pick, ux) = if u.x < w { (1, u.x / w) } else { (0, (u.x - w) / (1.0 - w)) };
                 let (wo, _) = phases[pick].sample(p, wi, Vec2::new(ux.min(ONE_MINUS_EPSILON), u.y));
-                (wo, self.eval(p, wi, wo))
+                (wo, blend(w, phases, p, wi, wo))
             }
         }
     }
@@ -119,6 +114,15 @@ fn blend_weight(weight: &Volume, p: Vec3) -> f32 {
     let v = weight.eval(p).0;
     let w = (v[0] + v[1] + v[2]) / 3.0;
     if w > 0.0 { w.min(1.0) } else { 0.0 }
+}
+
+/// The blend (1 − w)·p₀ + w·p₁ of the two phases' values (a part of weight
+/// zero is not evaluated).
+#[inline]
+fn blend(w: f32, phases: &[PhaseFunction; 2], p: Vec3, wi: Vec3, wo: Vec3) -> f32 {
+    let a = if w < 1.0 { phases[0].eval(p, wi, wo) } else { 0.0 };
+    let b = if w > 0.0 { phases[1].eval(p, wi, wo) } else { 0.0 };
+    (1.0 - w) * a + w * b
 }
 
 /// Henyey–Greenstein's density of the cosine `cos` between the travel

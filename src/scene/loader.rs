@@ -626,8 +626,9 @@ impl Loader {
                 return Err(SceneError::at(&sensor.loc, format!("a sensor inside a shape must be an irradiancemeter, not \"{}\"", sensor.plugin))
                     .with_choices(&["irradiancemeter"]));
             }
-            if let Some(other) = sensor_nodes.get(1).or(self.shape_sensor.as_ref().map(|(n, _)| n)) {
-                let second = if sensor_nodes.len() > 1 { other } else { sensor };
+            // The second meter, in this shape or after one in an earlier shape.
+            let second = if sensor_nodes.len() > 1 { Some(&sensor_nodes[1]) } else { self.shape_sensor.as_ref().map(|_| sensor) };
+            if let Some(second) = second {
                 return Err(SceneError::at(&second.loc, "the scene has more than one irradiancemeter; Snell renders exactly one sensor"));
             }
             if self.in_group {
