@@ -264,6 +264,12 @@ fn deterministic_across_threads_and_passes_final_gather() {
     deterministic(&SPPM.replace("</integrator>", r#"<string name="photons" value="final_gather"/></integrator>"#));
 }
 
+/// The same with four camera paths a pixel and iteration.
+#[test]
+fn deterministic_across_threads_and_passes_camera_paths() {
+    deterministic(&SPPM.replace("</integrator>", r#"<integer name="camera_paths" value="4"/></integrator>"#));
+}
+
 fn deterministic(integrator: &str) {
     let text = with_integrator("scenes/caustic-cornell-box.xml", integrator);
     let scene = load(
@@ -347,6 +353,12 @@ fn bad_parameters_are_located_errors() {
             light,
             29,
             "final_gather",
+        ),
+        (
+            r#"<integrator type="sppm"><integer name="camera_paths" value="0"/></integrator>"#,
+            light,
+            29,
+            "between 1 and 64",
         ),
         (
             r#"<integrator type="sppm"><float name="vertex_radius_scale" value="0"/></integrator>"#,
@@ -539,4 +551,55 @@ fn later_gathers_cut_the_caustic_box_error() {
         eprintln!("caustic box relMSE: caustics {visible:.3e}, {photons} {later:.3e}");
         assert!(later < 0.5 * visible, "{photons} {later:.3e} against caustics {visible:.3e}");
     }
+}
+
+/// `camera_paths`: n camera paths a pixel and iteration count the light
+/// they meet up to their visible points (emitters seen straight, in the
+/// gold sphere and through the glass one, whose images are a few pixels or
+/// less), and one of them goes on from its visible point. On the caustic
+/// box (`photons = final_gather`) the image mean equals the path tracer's
+/// within 1 % (measured: 0.4 % at most), and across four seeds at 16
+/// iterations the pixels' relative variance with 8 paths is well below
+/// that with one (measured: 0.68 of it). If the other paths added nothing,
+/// or drew the main path's numbers, it would stay at one path's.
+#[test]
+fn camera_paths_average_the_light_before_the_visible_point() {
+    let with_paths = |n: u32| {
+        format!(
+            r#"<integrator type="sppm"><integer name="max_depth" value="8"/>
+               <string name="photons" value="final_gather"/>
+               <integer name="camera_paths" value="{n}"/></integrator>"#
+        )
+    };
+    let reference = mean(&caustic_box(PATH_8, 256));
+    let m = mean(&caustic_box(&with_paths(8), 64));
+    for c in 0..3 {
+        let rel = m[c] / reference[c] - 1.0;
+        eprintln!("camera_paths 8, channel {c}: sppm {:.5}, path {:.5} ({:+.2} %)", m[c], reference[c], 100.0 * rel);
+        assert!(rel.abs() < 0.01, "channel {c}: sppm {} against path {}", m[c], reference[c]);
+    }
+    let scene_path = "scenes/caustic-cornell-box.xml";
+    let relative_variance = |n: u32| {
+        let text = with_integrator(scene_path, &with_paths(n)).replace(r#"<rfilter type="gaussian"/>"#, r#"<rfilter type="box"/>"#);
+        let images: Vec<Image> = (1..=4u64)
+            .map(|seed| {
+                let options = LoadOptions { params: common::params(&[("res", "64")]), spp: Some(16), seed: Some(seed) };
+                let scene = snell::load_str(&repo(scene_path), &text, &options).unwrap_or_else(|e| panic!("{e}"));
+                render(&scene, 2)
+            })
+            .collect();
+        let mut total = 0.0f64;
+        for i in 0..images[0].pixels.len() {
+            for c in 0..3 {
+                let v: Vec<f64> = images.iter().map(|img| img.pixels[i][c] as f64).collect();
+                let m = v.iter().sum::<f64>() / v.len() as f64;
+                let var = v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (v.len() - 1) as f64;
+                total += var / (m * m + 1e-2);
+            }
+        }
+        total / (3 * images[0].pixels.len()) as f64
+    };
+    let (one, eight) = (relative_variance(1), relative_variance(8));
+    eprintln!("relative variance: 1 path {one:.3e}, 8 paths {eight:.3e} ({:.2})", eight / one);
+    assert!(eight < 0.8 * one, "8 camera paths: relative variance {eight:.3e} against {one:.3e} with one");
 }

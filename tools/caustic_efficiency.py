@@ -63,7 +63,8 @@ SCENES = {
         sppm_sampler="zsobol", ref=("path", 32768)),
     "diamond": dict(
         file="scenes/diamond.xml", defines={"gem": "diamond"},
-        sppm=[{"photons": "caustics", "radius_footprints": 3.0}], sppm_sampler="zsobol",
+        sppm=[{"photons": "caustics", "radius_footprints": 3.0},
+              {"photons": "caustics", "radius_footprints": 3.0, "camera_paths": 8}], sppm_sampler="zsobol",
         ref=("path", 65536)),
     "pool": dict(
         file="scenes/pool-sun.xml", defines={},

@@ -1663,7 +1663,9 @@ impl Loader {
                 let radius_footprints = props.float_checked("radius_footprints", 1.5, |r| r > 0.0 && r <= 1e4, "a positive number of pixel footprints up to 10^4")?;
                 let photons = SppmPhotons::from_name(photons).unwrap_or(SppmPhotons::Caustics);
                 let vertex_radius_scale = props.float_checked("vertex_radius_scale", photons.default_vertex_radius_scale(), |r| r > 0.0 && r <= 1e4, "a positive multiple of the visible points' radius up to 10^4")?;
+                let camera_paths = props.int_checked("camera_paths", 1, |v| (1..=64).contains(&v), "between 1 and 64")? as u32;
                 Integrator::Sppm(Sppm {
+                    camera_paths,
                     vertex_radius_scale,
                     photons,
                     radius_footprints,
