@@ -64,7 +64,7 @@ SCENES = {
     "diamond": dict(
         file="scenes/diamond.xml", defines={"gem": "diamond"},
         sppm=[{"photons": "caustics", "radius_footprints": 3.0},
-              {"photons": "caustics", "radius_footprints": 3.0, "camera_paths": 8}], sppm_sampler="zsobol",
+              {"photons": "caustics", "radius_footprints": 3.0, "camera_paths": 16}], sppm_sampler="zsobol",
         ref=("path", 65536)),
     "pool": dict(
         file="scenes/pool-sun.xml", defines={},

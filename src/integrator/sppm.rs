@@ -84,7 +84,7 @@
 //! | `photons` | string | `caustics` | the light photons carry: `caustics` (arriving at the visible point straight from a delta bounce; the rest is path traced), `all_caustics` (arriving straight from a delta bounce at any smooth vertex of the camera path from the visible point on), `indirect` (everything that bounced before the visible point: classic SPPM, only direct light sampled there), `final_gather` (caustics at the visible point; everything that bounced before the vertex after it gathered there: Jensen's final gather), `none` (no photons: the image without caustics, for measuring the split; not a complete image) |
 //! | `vertex_radius_scale` | float | 4 (`final_gather`: 2) | `photons = all_caustics` or `final_gather`: the radius at the camera path's later vertices in the first iteration, in units of the visible points' mean initial radius |
 //! | `radius_footprints` | float | 1.5 | the automatic initial radius (`initial_radius` 0) in pixel footprints at each pixel's first visible point |
-//! | `camera_paths` | integer | 1 | camera paths per pixel and iteration, 1–64: each counts the light it meets up to its visible point (emitters seen straight, in mirrors, through glass), and the first goes on from its visible point as the only one does (see below) |
+//! | `camera_paths` | integer | 1 | camera paths per pixel and iteration, 1–64, where the light before the visible point varies: each counts the light it meets up to its visible point (emitters seen straight, in mirrors, through glass), and the first goes on from its visible point as the only one does (see below) |
 //!
 //! ```xml
 //! <integrator type="sppm">
@@ -97,17 +97,21 @@
 //! `camera_paths` = n > 1: the light a camera path meets before its
 //! visible point (a small emitter seen through a gem's facets, its image a
 //! few pixels or less) is the part of the image that wants many samples a
-//! pixel, and the cheap one: those paths stop at their visible points.
-//! Each pixel's n paths estimate it, averaged; the first path alone goes
-//! on (direct light, final gather, photons), so its own part before the
-//! visible point is replaced by the average. Unbiased: each path's part
-//! before its visible point has the same expectation. The other paths draw
-//! from the scene's sampler kind with a seed of their own, pixel by pixel
-//! at consecutive indices, so the main paths are those of one path and
-//! n = 1 gives the same image as before. Measured (docs/performance.md):
-//! worth it on the diamond (1.5× the efficiency at 4–8 paths), not on the
-//! glass of water or the caustic box, where the extra paths cost more than
-//! the noise they remove.
+//! pixel, and the cheap one: such paths stop at their visible points. In
+//! a pixel where that light varied in the earlier iterations and made at
+//! least half of its main paths' variance (and in the first two
+//! iterations everywhere), n − 1 more paths estimate it, averaged with the
+//! main path's; the main path alone goes on (direct light, final gather,
+//! photons). Unbiased: each path's part before its visible point has the
+//! same expectation, and whether a pixel takes more paths depends on
+//! earlier iterations only. The other paths draw from the scene's sampler
+//! kind with a seed of their own, at consecutive indices per pixel, so the
+//! main paths are those of one path and n = 1 gives the same image as
+//! before. Measured (docs/performance.md): on the diamond 3× the
+//! efficiency at 8–16 paths; level on the glass of water and the caustic
+//! box, whose noise is elsewhere. Rare paths to an emitter in a pixel
+//! that never showed them stay single samples (no earlier variation calls
+//! for more paths there).
 //!
 //! Limits and behaviour:
 //! - Modes `rgb` and `spectral` (all camera and light paths of one
@@ -953,7 +957,10 @@ pub fn render<S: Spectrum>(
     // The buffers of an iteration, kept across iterations.
     let mut direct = vec![Rgb::zero(); pixels];
     let mut points: Vec<Option<VisiblePoint<S>>> = (0..pixels).map(|_| None).collect();
-    let mut chunk_later: Vec<(Vec<VisiblePoint<S>>, Vec<u32>)> =
+    // (and, with `camera_paths` > 1, its pixels' history so far: the sum,
+    // sum of squares and count of their paths' light before the visible
+    // points, and the sum and sum of squares of their main paths' light)
+    let mut chunk_later: Vec<(Vec<VisiblePoint<S>>, Vec<u32>, Vec<[f64; 5]>)> =
         (0..pixels.div_ceil(CAMERA_CHUNK)).map(|_| Default::default()).collect();
     // `camera_paths`: the main paths draw from the scene's sampler as with
     // one path; the others from one of their own (another seed), each
@@ -991,23 +998,44 @@ pub fn render<S: Spectrum>(
                     .zip(points.par_chunks_mut(CAMERA_CHUNK))
                     .zip(chunk_later.par_iter_mut())
                     .enumerate()
-                    .for_each(|(c, ((direct, points), (later, later_pixel)))| {
+                    .for_each(|(c, ((direct, points), (later, later_pixel, history)))| {
                         later.clear();
                         later_pixel.clear();
+                        if paths > 1 && history.len() != direct.len() {
+                            history.resize(direct.len(), [0.0; 5]);
+                        }
                         for (j, (d, vp)) in direct.iter_mut().zip(points.iter_mut()).enumerate() {
                             let i = c * CAMERA_CHUNK + j;
                             let (px, py) = (ox + (i % w as usize) as u32, oy + (i / w as usize) as u32);
                             let main = sppm.camera_path::<S>(scene, px, py, (&scene.sampler, iteration), wl, later, false);
                             (*d, *vp) = (main.light, main.vp);
                             if paths > 1 {
-                                // The other paths' light up to their visible
+                                // The other paths where the light before
+                                // the visible point varied in the earlier
+                                // iterations (in the first two: everywhere)
+                                // and made half of the main paths' variance
+                                // or more: their light up to their visible
                                 // points, averaged with the main path's.
-                                let mut sum = main.before_vp;
-                                for p in 0..paths - 1 {
-                                    let index = iteration * (paths - 1) + p;
-                                    sum += sppm.camera_path::<S>(scene, px, py, (&extra_spec, index), wl, later, true).before_vp;
+                                // (Decided on earlier paths only, so the
+                                // average stays unbiased.)
+                                let h = &mut history[j];
+                                let luminance = |c: Rgb| (c[0] + c[1] + c[2]) as f64;
+                                let variance = |sum: f64, sq: f64, n: f64| (sq - sum * sum / n) / n;
+                                let var_before = variance(h[0], h[1], h[2].max(1.0));
+                                let var_all = variance(h[3], h[4], iteration.max(1) as f64);
+                                if iteration < 2 || (var_before > 1e-9 * h[1] / h[2].max(1.0) && var_before > 0.5 * var_all) {
+                                    let mut sum = main.before_vp;
+                                    for p in 0..paths - 1 {
+                                        let index = iteration * (paths - 1) + p;
+                                        let b = sppm.camera_path::<S>(scene, px, py, (&extra_spec, index), wl, later, true).before_vp;
+                                        sum += b;
+                                        let b = luminance(b);
+                                        (h[0], h[1], h[2]) = (h[0] + b, h[1] + b * b, h[2] + 1.0);
+                                    }
+                                    *d += sum * (1.0 / paths as f32) - main.before_vp;
                                 }
-                                *d += sum * (1.0 / paths as f32) - main.before_vp;
+                                let (b, a) = (luminance(main.before_vp), luminance(main.light));
+                                *h = [h[0] + b, h[1] + b * b, h[2] + 1.0, h[3] + a, h[4] + a * a];
                             }
                             later_pixel.resize(later.len(), i as u32);
                         }
@@ -1015,7 +1043,7 @@ pub fn render<S: Spectrum>(
             });
             later.clear();
             later_pixel.clear();
-            for (vps, pix) in &mut chunk_later {
+            for (vps, pix, _) in &mut chunk_later {
                 later.extend(vps.drain(..).map(Some));
                 later_pixel.append(pix);
             }
