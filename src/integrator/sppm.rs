@@ -265,6 +265,39 @@ struct CameraPath<S: Spectrum> {
     vp: Option<VisiblePoint<S>>,
 }
 
+/// `camera_paths`: what a pixel's camera paths found in the earlier
+/// iterations, as running sums of luminance (R + G + B): their light up to
+/// their visible points (all paths), and the main paths' whole light.
+#[derive(Clone, Copy, Default)]
+struct PathHistory {
+    before: [f64; 3],
+    main: [f64; 3],
+}
+
+impl PathHistory {
+    /// Whether iteration `iteration` traces the other paths: in the first
+    /// two everywhere, then where the light before the visible point has
+    /// varied and made at least half of the main paths' variance.
+    fn wants_more(&self, iteration: u32) -> bool {
+        let variance = |[n, sum, sq]: [f64; 3]| (sq - sum * sum / n.max(1.0)) / n.max(1.0);
+        let before = variance(self.before);
+        iteration < 2 || (before > 1e-9 * self.before[2] / self.before[0].max(1.0) && before > 0.5 * variance(self.main))
+    }
+
+    fn add_before(&mut self, light: Rgb) {
+        Self::add(&mut self.before, light);
+    }
+
+    fn add_main(&mut self, light: Rgb) {
+        Self::add(&mut self.main, light);
+    }
+
+    fn add(sums: &mut [f64; 3], light: Rgb) {
+        let l = (light[0] + light[1] + light[2]) as f64;
+        *sums = [sums[0] + 1.0, sums[1] + l, sums[2] + l * l];
+    }
+}
+
 /// A pixel's progressive statistics.
 #[derive(Clone, Copy)]
 struct PixelStats {
@@ -957,10 +990,8 @@ pub fn render<S: Spectrum>(
     // The buffers of an iteration, kept across iterations.
     let mut direct = vec![Rgb::zero(); pixels];
     let mut points: Vec<Option<VisiblePoint<S>>> = (0..pixels).map(|_| None).collect();
-    // (and, with `camera_paths` > 1, its pixels' history so far: the sum,
-    // sum of squares and count of their paths' light before the visible
-    // points, and the sum and sum of squares of their main paths' light)
-    let mut chunk_later: Vec<(Vec<VisiblePoint<S>>, Vec<u32>, Vec<[f64; 5]>)> =
+    // (and, with `camera_paths` > 1, its pixels' `PathHistory`)
+    let mut chunk_later: Vec<(Vec<VisiblePoint<S>>, Vec<u32>, Vec<PathHistory>)> =
         (0..pixels.div_ceil(CAMERA_CHUNK)).map(|_| Default::default()).collect();
     // `camera_paths`: the main paths draw from the scene's sampler as with
     // one path; the others from one of their own (another seed), each
@@ -1002,7 +1033,7 @@ pub fn render<S: Spectrum>(
                         later.clear();
                         later_pixel.clear();
                         if paths > 1 && history.len() != direct.len() {
-                            history.resize(direct.len(), [0.0; 5]);
+                            history.resize(direct.len(), PathHistory::default());
                         }
                         for (j, (d, vp)) in direct.iter_mut().zip(points.iter_mut()).enumerate() {
                             let i = c * CAMERA_CHUNK + j;
@@ -1010,32 +1041,24 @@ pub fn render<S: Spectrum>(
                             let main = sppm.camera_path::<S>(scene, px, py, (&scene.sampler, iteration), wl, later, false);
                             (*d, *vp) = (main.light, main.vp);
                             if paths > 1 {
-                                // The other paths where the light before
-                                // the visible point varied in the earlier
-                                // iterations (in the first two: everywhere)
-                                // and made half of the main paths' variance
-                                // or more: their light up to their visible
-                                // points, averaged with the main path's.
-                                // (Decided on earlier paths only, so the
-                                // average stays unbiased.)
+                                // The other paths where they pay (decided on
+                                // earlier paths only, so the average stays
+                                // unbiased): their light up to their
+                                // visible points, averaged with the main
+                                // path's.
                                 let h = &mut history[j];
-                                let luminance = |c: Rgb| (c[0] + c[1] + c[2]) as f64;
-                                let variance = |sum: f64, sq: f64, n: f64| (sq - sum * sum / n) / n;
-                                let var_before = variance(h[0], h[1], h[2].max(1.0));
-                                let var_all = variance(h[3], h[4], iteration.max(1) as f64);
-                                if iteration < 2 || (var_before > 1e-9 * h[1] / h[2].max(1.0) && var_before > 0.5 * var_all) {
+                                if h.wants_more(iteration) {
                                     let mut sum = main.before_vp;
                                     for p in 0..paths - 1 {
                                         let index = iteration * (paths - 1) + p;
                                         let b = sppm.camera_path::<S>(scene, px, py, (&extra_spec, index), wl, later, true).before_vp;
                                         sum += b;
-                                        let b = luminance(b);
-                                        (h[0], h[1], h[2]) = (h[0] + b, h[1] + b * b, h[2] + 1.0);
+                                        h.add_before(b);
                                     }
                                     *d += sum * (1.0 / paths as f32) - main.before_vp;
                                 }
-                                let (b, a) = (luminance(main.before_vp), luminance(main.light));
-                                *h = [h[0] + b, h[1] + b * b, h[2] + 1.0, h[3] + a, h[4] + a * a];
+                                h.add_before(main.before_vp);
+                                h.add_main(main.light);
                             }
                             later_pixel.resize(later.len(), i as u32);
                         }
