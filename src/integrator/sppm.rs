@@ -139,7 +139,7 @@
 //!   iteration's camera paths takes as much again (`final_gather`: at
 //!   most one a pixel).
 
-use crate::bsdf::{BsdfContext, Lobe};
+use crate::bsdf::{Bsdf, BsdfContext, Lobe};
 use crate::film::{FilmState, Filter, Image, Sink};
 use crate::geometry::{Ray, SurfaceInteraction};
 use crate::emitter::ShadingPoint;
@@ -147,6 +147,7 @@ use crate::integrator::path::{escaped, hit_weight, next_event};
 use crate::math::rounding::{floor_i32, floor_i64};
 use crate::integrator::ptracer::shading_correction;
 use crate::math::rng::mix64;
+use crate::math::INV_PI;
 use crate::render::{PassReport, RenderOptions, RenderStats};
 use crate::sampler::{Sampler, SamplerKind, SamplerSpec};
 use crate::scene::Scene;
@@ -310,14 +311,14 @@ struct PixelStats {
 
 /// Bytes a render holds per pixel besides the film: visible point, grid
 /// entries (at most eight, and the points gathered while building),
-/// statistics and the photon sums of an iteration.
+/// statistics, the photon sums of an iteration and its packed targets.
 pub const MEMORY_PER_PIXEL: u64 = (std::mem::size_of::<Option<VisiblePoint<Sampled>>>()
     + 8 * std::mem::size_of::<GridEntry>()
     + std::mem::size_of::<(GridEntry, f32)>()
     + 4
     + std::mem::size_of::<PixelStats>()
-    + 3 * 8
-    + 4) as u64;
+    + std::mem::size_of::<PointSums>()
+    + std::mem::size_of::<Option<Target<Sampled>>>()) as u64;
 
 /// Photon flux is summed per pixel in fixed point: units of 2^−16, each
 /// term (a photon's β_cam·f·Φ) clamped to ±2^24 (far beyond any pixel's
@@ -667,10 +668,8 @@ impl Sppm {
         index: u32,
         iteration: u32,
         wl: S::Wavelengths,
-        grid: &Grid,
-        points: &[Option<VisiblePoint<S>>],
-        sums: &Sums,
-        later: Option<(&Grid, &[Option<VisiblePoint<S>>], &Sums)>,
+        visible_map: &PhotonMap<S>,
+        later: Option<&PhotonMap<S>>,
     ) {
         let mut sampler = Sampler::start(spec, index, iteration, 0);
         let mut wl = wl;
@@ -716,14 +715,10 @@ impl Sppm {
                 let seed =
                     mix64(((iteration as u64) << 32 | index as u64) ^ ((segments as u64) << 58));
                 if visible {
-                    self.deposit(
-                        scene, &si, ray.d, segments, beta, dispersed, seed, grid, points, sums,
-                    );
+                    self.deposit(scene, &si, ray.d, segments, beta, dispersed, seed, visible_map);
                 }
-                if let (true, Some((grid, points, sums))) = (at_later, later) {
-                    self.deposit(
-                        scene, &si, ray.d, segments, beta, dispersed, !seed, grid, points, sums,
-                    );
+                if let (true, Some(map)) = (at_later, later) {
+                    self.deposit(scene, &si, ray.d, segments, beta, dispersed, !seed, map);
                 }
             }
             if segments.saturating_add(2) > self.max_depth {
@@ -765,44 +760,31 @@ impl Sppm {
         beta: S,
         dispersed: bool,
         seed: u64,
-        grid: &Grid,
-        points: &[Option<VisiblePoint<S>>],
-        sums: &Sums,
+        map: &PhotonMap<S>,
     ) {
-        for (k, e) in grid.near(si.p).iter().enumerate() {
+        for (k, e) in map.grid.near(si.p).iter().enumerate() {
             if (e.p - si.p).length_squared() >= e.r2 {
                 continue;
             }
             let i = e.pixel as usize;
-            let Some(vp) = &points[i] else { continue };
-            if vp.depth.saturating_add(segments) > self.max_depth {
+            let Some(t) = &map.targets[i] else { continue };
+            if t.depth.saturating_add(segments) > self.max_depth {
                 continue;
             }
             // Not across a corner or onto the other side of a thin wall.
-            if vp.si.n.dot(si.n).abs() < 0.1 {
+            if t.n.dot(si.n).abs() < 0.1 {
                 continue;
             }
-            // (The later vertices keep no count: their radius does not adapt.)
-            if let Some(count) = sums.count.get(i) {
-                count.fetch_add(1, Ordering::Relaxed);
+            let sums = &map.sums.points[i];
+            if map.sums.counted {
+                sums.count.fetch_add(1, Ordering::Relaxed);
             }
-            let wi = vp.si.to_local(-d);
-            let cos = wi.z.abs();
-            if !(cos > 1e-6) {
-                continue;
-            }
-            let f: S =
-                scene
-                    .bsdf(&vp.si)
-                    .eval(&BsdfContext::RADIANCE, &vp.si, vp.si.wi, wi, &vp.wl);
-            if f.is_zero() {
-                continue;
-            }
-            let mut wl = vp.wl;
+            let Some(value) = t.reflected(&map.points[i], d, beta, |si| scene.bsdf(si)) else { continue };
+            let mut wl = t.wl;
             if dispersed {
                 S::terminate_secondary(&mut wl);
             }
-            let rgb = (vp.beta * f * beta * (1.0 / cos)).to_rgb(&wl);
+            let rgb = value.to_rgb(&wl);
             if !rgb.is_finite() {
                 continue;
             }
@@ -813,7 +795,7 @@ impl Sppm {
                 let v = (rgb[c] as f64 * FIXED_SCALE).clamp(-FIXED_MAX, FIXED_MAX);
                 let q = floor_i64(v + u);
                 if q != 0 {
-                    sums.phi[i][c].fetch_add(q, Ordering::Relaxed);
+                    sums.phi[c].fetch_add(q, Ordering::Relaxed);
                 }
             }
         }
@@ -828,11 +810,60 @@ fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
 
 #[cfg(test)]
 mod tests {
-    use super::{Grid, PixelStats, VisiblePoint};
+    use super::{Grid, PixelStats, Target, VisiblePoint};
+    use crate::bsdf::{Bsdf, Diffuse};
     use crate::geometry::SurfaceInteraction;
-    use crate::math::Pcg32;
-    use crate::spectrum::{Rgb, Spectrum};
+    use crate::math::{Frame, Pcg32};
+    use crate::spectrum::{Rgb, Sampled, Spectrum};
+    use crate::texture::Texture;
     use glam::Vec3;
+
+    /// A deposit at a `diffuse` point takes ρ/π from its target instead of
+    /// evaluating the BSDF: the same value (to rounding) for every photon
+    /// and path direction, and nothing wherever the evaluation gives
+    /// nothing (a photon from below, a path that arrived from below).
+    #[test]
+    fn diffuse_targets_reflect_what_the_bsdf_evaluates() {
+        fn check<S: Spectrum>() {
+            let bsdf = Bsdf::Diffuse(Diffuse { reflectance: Texture::constant(Rgb::new(0.2, 0.5, 0.8)) });
+            let mut rng = Pcg32::new(11, 3);
+            let unit = |rng: &mut Pcg32| loop {
+                let v = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - Vec3::ONE;
+                if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
+                    return v.normalize();
+                }
+            };
+            let (mut lit, mut dark) = (0, 0);
+            for _ in 0..4000 {
+                let n = unit(&mut rng);
+                let frame = Frame::from_normal(n);
+                let si = SurfaceInteraction { n, frame, wi: frame.to_local(unit(&mut rng)), ..SurfaceInteraction::EMPTY };
+                let vp = VisiblePoint { si, beta: S::splat(0.7), wl: S::sample_wavelengths(rng.next_f32()), depth: 1, distance: 1.0 };
+                let target = Target::of(&bsdf, &vp);
+                assert!(target.lambert.is_some(), "a diffuse point takes the shortcut");
+                let evaluated = Target { lambert: None, ..target };
+                let (d, beta) = (unit(&mut rng), S::splat(1.3));
+                let vp = Some(vp);
+                let got = target.reflected(&vp, d, beta, |_| &bsdf);
+                let want = evaluated.reflected(&vp, d, beta, |_| &bsdf);
+                match (got, want) {
+                    (Some(g), Some(w)) => {
+                        lit += 1;
+                        let (g, w) = (g.to_rgb(&vp.as_ref().unwrap().wl), w.to_rgb(&vp.as_ref().unwrap().wl));
+                        for c in 0..3 {
+                            assert!((g[c] - w[c]).abs() <= 1e-5 * w[c].abs().max(1e-3), "{g:?} against {w:?}");
+                        }
+                    }
+                    (None, None) => dark += 1,
+                    (g, w) => panic!("shortcut {:?}, evaluated {:?}", g.map(|_| ()), w.map(|_| ())),
+                }
+            }
+            // About a quarter of the pairs have both directions above.
+            assert!(lit > 600 && dark > 2000, "lit {lit}, dark {dark}");
+        }
+        check::<Rgb>();
+        check::<Sampled>();
+    }
 
     /// Every visible point within its radius of a query is found, and no
     /// other, and each once, on points of many radii (the cells are sized by
@@ -893,26 +924,106 @@ mod tests {
 
 }
 
-/// One iteration's photon sums per pixel.
+/// A visible point's photon sums of one iteration in one aligned 32-byte
+/// block, so that a deposit's four adds write one cache line.
+#[derive(Default)]
+#[repr(align(32))]
+struct PointSums {
+    phi: [AtomicI64; 3],
+    /// Photons counted, for the point's radius (not kept at the later
+    /// vertices, whose radius follows a fixed schedule).
+    count: AtomicU32,
+}
+
+/// One iteration's photon sums per visible point.
 #[derive(Default)]
 struct Sums {
-    phi: Vec<[AtomicI64; 3]>,
-    /// Photons counted per visible point, for its radius; empty for the
-    /// later vertices, whose radius follows a fixed schedule.
-    count: Vec<AtomicU32>,
+    points: Vec<PointSums>,
+    /// Whether deposits count their photons.
+    counted: bool,
 }
 
 impl Sums {
-    /// Zero sums for `points` points (counted or not), in the buffers of
+    /// Zero sums for `points` points (counted or not), in the buffer of
     /// the last iteration.
     fn reset(&mut self, points: usize, counted: bool) {
-        self.phi.clear();
-        self.phi.resize_with(points, Default::default);
-        self.count.clear();
-        if counted {
-            self.count.resize_with(points, Default::default);
+        self.points.clear();
+        self.points.resize_with(points, Default::default);
+        self.counted = counted;
+    }
+
+    fn phi(&self, i: usize, c: usize) -> i64 {
+        self.points[i].phi[c].load(Ordering::Relaxed)
+    }
+}
+
+/// What a deposit reads of a visible point, packed and built once an
+/// iteration: the visible points themselves are 150 bytes apart, and
+/// reading them was most of a deposit's time.
+#[derive(Clone, Copy)]
+struct Target<S: Spectrum> {
+    /// Geometric normal (for the test against photons across a corner).
+    n: Vec3,
+    /// The shading frame's normal.
+    shading_n: Vec3,
+    depth: u32,
+    /// At a `diffuse` BSDF: the path's throughput times ρ/π (zero where the
+    /// path arrived from below), the same for every photon from above, so
+    /// the BSDF is not evaluated per photon; `None`: evaluated.
+    lambert: Option<S>,
+    wl: S::Wavelengths,
+}
+
+impl<S: Spectrum> Target<S> {
+    /// The target of `vp`, whose BSDF is `bsdf`.
+    fn of(bsdf: &Bsdf, vp: &VisiblePoint<S>) -> Target<S> {
+        let lambert = match bsdf {
+            // `Diffuse::eval`: zero unless both directions are above.
+            Bsdf::Diffuse(_) if vp.si.wi.z <= 0.0 => Some(S::zero()),
+            Bsdf::Diffuse(b) => {
+                Some(vp.beta * b.reflectance.eval_spectrum::<S>(&vp.si, &vp.wl).depolarize() * INV_PI)
+            }
+            _ => None,
+        };
+        Target { n: vp.si.n, shading_n: vp.si.frame.n, depth: vp.depth, lambert, wl: vp.wl }
+    }
+
+    /// What a photon of throughput `beta` arriving along `d` adds at the
+    /// point (`vp`: the point itself, and `bsdf_at` its BSDF, read only
+    /// where it is not `diffuse`): throughput · f · beta / |cos|, or `None`
+    /// where the BSDF reflects none of it.
+    #[inline]
+    fn reflected<'b>(&self, vp: &Option<VisiblePoint<S>>, d: Vec3, beta: S, bsdf_at: impl FnOnce(&SurfaceInteraction) -> &'b Bsdf) -> Option<S> {
+        match self.lambert {
+            // f / cos = ρ/π for a photon from above (`Diffuse::eval`).
+            Some(w) => (self.shading_n.dot(-d) > 1e-6 && !w.is_zero()).then(|| w * beta),
+            None => {
+                let vp = vp.as_ref()?;
+                let wi = vp.si.to_local(-d);
+                let cos = wi.z.abs();
+                if !(cos > 1e-6) {
+                    return None;
+                }
+                let f: S = bsdf_at(&vp.si).eval(&BsdfContext::RADIANCE, &vp.si, vp.si.wi, wi, &vp.wl);
+                (!f.is_zero()).then(|| vp.beta * f * beta * (1.0 / cos))
+            }
         }
     }
+}
+
+/// The visible points (or later vertices) photons are deposited at: their
+/// grid, the points, their packed targets and the sums of the iteration.
+struct PhotonMap<'a, S: Spectrum> {
+    grid: &'a Grid,
+    points: &'a [Option<VisiblePoint<S>>],
+    targets: &'a [Option<Target<S>>],
+    sums: &'a Sums,
+}
+
+
+/// Each point's target, in parallel, into `out`'s buffer.
+fn build_targets<S: Spectrum>(scene: &Scene, points: &[Option<VisiblePoint<S>>], out: &mut Vec<Option<Target<S>>>) {
+    points.par_iter().map(|vp| vp.as_ref().map(|vp| Target::of(scene.bsdf(&vp.si), vp))).collect_into_vec(out);
 }
 
 /// Pixels a unit of parallel work in the camera pass.
@@ -1004,6 +1115,7 @@ pub fn render<S: Spectrum>(
     let mut later_pixel: Vec<u32> = Vec::new();
     let mut later_light: Vec<[f64; 3]> = Vec::new();
     let (mut sums, mut later_sums) = (Sums::default(), Sums::default());
+    let (mut targets, mut later_targets) = (Vec::new(), Vec::new());
     let (mut grid, mut later_grid) = (Grid::default(), Grid::default());
     let min_len = if sppm.granularity > 0 {
         sppm.granularity as usize
@@ -1095,24 +1207,23 @@ pub fn render<S: Spectrum>(
             }));
             let later_ok = pool.install(|| later_grid.rebuild());
             if sppm.photons != Photons::None && pool.install(|| grid.build(&points, &stats)) {
-                let later = later_ok.then_some((&later_grid, &later[..], &later_sums));
                 pool.install(|| {
-                    (0..photon_count)
-                        .into_par_iter()
-                        .with_min_len(min_len)
-                        .for_each(|p| {
-                            sppm.photon::<S>(
-                                scene,
-                                &photon_spec,
-                                p,
-                                iteration,
-                                wl,
-                                &grid,
-                                &points,
-                                &sums,
-                                later,
-                            );
-                        })
+                    build_targets(scene, &points, &mut targets);
+                    if later_ok {
+                        build_targets(scene, &later, &mut later_targets);
+                    }
+                });
+                let visible = PhotonMap { grid: &grid, points: &points, targets: &targets, sums: &sums };
+                let later = later_ok.then_some(PhotonMap {
+                    grid: &later_grid,
+                    points: &later,
+                    targets: &later_targets,
+                    sums: &later_sums,
+                });
+                pool.install(|| {
+                    (0..photon_count).into_par_iter().with_min_len(min_len).for_each(|p| {
+                        sppm.photon::<S>(scene, &photon_spec, p, iteration, wl, &visible, later.as_ref());
+                    })
                 });
             }
             // The later vertices' photons: each iteration's own density
@@ -1123,7 +1234,7 @@ pub fn render<S: Spectrum>(
             if later_scale.is_finite() {
                 for (j, &i) in later_pixel.iter().enumerate() {
                     for c in 0..3 {
-                        later_light[i as usize][c] += later_sums.phi[j][c].load(Ordering::Relaxed) as f64 * later_scale;
+                        later_light[i as usize][c] += later_sums.phi(j, c) as f64 * later_scale;
                     }
                 }
             }
@@ -1144,13 +1255,12 @@ pub fn render<S: Spectrum>(
                                 st.direct[c] += light[c];
                             }
                         }
-                        let m = sums.count[i].load(Ordering::Relaxed) as f64;
+                        let m = sums.points[i].count.load(Ordering::Relaxed) as f64;
                         if m > 0.0 {
                             let n_new = st.n + alpha * m;
                             let ratio = n_new / (st.n + m);
                             for c in 0..3 {
-                                let phi =
-                                    sums.phi[i][c].load(Ordering::Relaxed) as f64 / FIXED_SCALE;
+                                let phi = sums.phi(i, c) as f64 / FIXED_SCALE;
                                 st.tau[c] = (st.tau[c] + phi) * ratio;
                             }
                             st.n = n_new;
