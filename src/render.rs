@@ -128,8 +128,7 @@ fn estimate(scene: &Scene, polarized: bool, passes: bool) -> u64 {
     let copies = if passes { 2 } else { 1 };
     if let Integrator::Sppm(sppm) = &scene.integrator {
         let points = sppm.photons.points_per_pixel();
-        // `camera_paths` > 1: five sums a pixel of its paths' history.
-        let history = if sppm.camera_paths > 1 { 5 * 8 } else { 0 };
+        let history = if sppm.camera_paths > 1 { crate::integrator::sppm::HISTORY_PER_PIXEL } else { 0 };
         return pixels * (points * crate::integrator::sppm::MEMORY_PER_PIXEL + 2 * 4 * 16 + 2 * 12 + history);
     }
     if let Integrator::Particle(_) = &scene.integrator {
