@@ -122,8 +122,17 @@
 //!   `envmap`, `directional`) send photons from a disk of the scene's
 //!   bounding sphere (most of which land where no camera looks in a large
 //!   scene: such scenes need more photons).
-//! - The pixel filter is a box over the pixel (one visible point per pixel
-//!   and iteration); the film's `rfilter` is not used.
+//! - The film's `rfilter` weighs the pixels as a splatting film does, by
+//!   importance sampling: a pixel's camera path starts at an offset drawn
+//!   in proportion to the filter's magnitude ([`FilterSampler`]) and
+//!   everything it adds (its light, its points' throughput) is weighted
+//!   by w/p over the filter's mass inside the crop window (negative lobes
+//!   give negative weights; paths drawn outside the window add nothing).
+//!   So a pixel converges to Σ w·L / Σ w as `path`'s does, and the
+//!   pixels beside a sharp bright edge agree with it (tests/sppm.rs). A
+//!   pixel's estimate stays its own (one visible point a pixel and
+//!   iteration), so a wide filter does not smooth the noise as splatting
+//!   does. A `box` filter keeps the uniform position in the pixel.
 //! - The per-pixel state (R, N, τ) is not a sum of samples: a render cannot
 //!   be split into sample ranges, merged ([`crate::film::FilmState::merge`])
 //!   or resumed from a checkpoint; those refuse. The film state of a pass
@@ -140,7 +149,7 @@
 //!   most one a pixel).
 
 use crate::bsdf::{Bsdf, BsdfContext, Lobe};
-use crate::film::{FilmState, Filter, Image, Sink};
+use crate::film::{window_filter_mass, FilmState, Filter, FilterKind, FilterSampler, Image, Sink};
 use crate::geometry::{Ray, SurfaceInteraction};
 use crate::emitter::ShadingPoint;
 use crate::integrator::path::{escaped, hit_weight, next_event};
@@ -512,9 +521,11 @@ impl Sppm {
     /// the gather point (pushed onto `later`) if it has a smooth lobe, else
     /// the path stops there; it samples its smooth lobes only, and the path
     /// stops at the vertex after it.
+    #[allow(clippy::too_many_arguments)]
     fn camera_path<S: Spectrum>(
         &self,
         scene: &Scene,
+        pixel: &PixelFilter,
         x: u32,
         y: u32,
         (spec, index): (&SamplerSpec, u32),
@@ -527,7 +538,13 @@ impl Sppm {
             1.0 / scene.film.width as f32,
             1.0 / scene.film.height as f32,
         );
-        let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
+        // The path's filter weight scales what it adds to the pixel (its
+        // light and its points' throughput), not the throughput Russian
+        // roulette reads: a negative lobe's weight is negative.
+        let (pos, weight) = pixel.position(x, y, sampler.next_2d());
+        if weight == 0.0 {
+            return CameraPath { light: Rgb::zero(), before_vp: Rgb::zero(), vp: None };
+        }
         let mut ray = scene.camera.sample_ray(pos * inv_size, &mut sampler);
         let mut wl = wl;
         let mut l = S::zero();
@@ -581,7 +598,7 @@ impl Sppm {
             if after >= 1 && self.photons == Photons::AllCaustics && smooth {
                 // Light arriving here straight from a delta bounce is the
                 // photons' (a photon adds at least one segment).
-                later.push(VisiblePoint { si: si.clone(), beta, wl, depth, distance });
+                later.push(VisiblePoint { si: si.clone(), beta: beta * weight, wl, depth, distance });
             }
             if after == 1 && self.photons == Photons::FinalGather {
                 // The final gather's point: light that bounced before it
@@ -591,7 +608,7 @@ impl Sppm {
                 if !smooth {
                     break;
                 }
-                later.push(VisiblePoint { si: si.clone(), beta, wl, depth, distance });
+                later.push(VisiblePoint { si: si.clone(), beta: beta * weight, wl, depth, distance });
                 sample_ctx = ctx.with_lobes(Lobe::SMOOTH);
             }
             if vp.is_none() {
@@ -612,7 +629,7 @@ impl Sppm {
                     sample_ctx = ctx.with_lobes(Lobe::SMOOTH);
                     vp = Some(VisiblePoint {
                         si: si.clone(),
-                        beta,
+                        beta: beta * weight,
                         wl,
                         depth,
                         distance,
@@ -657,7 +674,7 @@ impl Sppm {
             let Some(scale) = crate::integrator::path::russian_roulette(beta.max_component(), eta, depth, self.rr_depth, &mut sampler) else { break };
             beta *= scale;
         }
-        let finite = |l: S| Some(l.to_rgb(&wl)).filter(|rgb| rgb.is_finite()).unwrap_or(Rgb::zero());
+        let finite = |l: S| Some((l * weight).to_rgb(&wl)).filter(|rgb| rgb.is_finite()).unwrap_or(Rgb::zero());
         CameraPath { light: finite(l), before_vp: finite(before_vp.unwrap_or(l)), vp }
     }
 
@@ -1030,6 +1047,63 @@ fn build_targets<S: Spectrum>(scene: &Scene, points: &[Option<VisiblePoint<S>>],
     points.par_iter().map(|vp| vp.as_ref().map(|vp| Target::of(scene.bsdf(&vp.si), vp))).collect_into_vec(out);
 }
 
+/// Where a pixel's camera path starts on the film, and its weight: the
+/// film's reconstruction filter by importance sampling
+/// ([`FilterSampler`]), so that a pixel estimates Σ w·L / Σ w over the
+/// crop window as a splatting film does (`path`'s image). A box filter
+/// keeps the plain uniform position in the pixel, weight 1.
+enum PixelFilter {
+    Box,
+    Sampled {
+        filter: Filter,
+        sampler: FilterSampler,
+        /// The filter's mass inside the crop window, per column and row.
+        mass_x: Vec<f32>,
+        mass_y: Vec<f32>,
+        /// The crop window: origin and size (film pixels).
+        window: [u32; 4],
+    },
+}
+
+impl PixelFilter {
+    fn new(scene: &Scene) -> PixelFilter {
+        let filter = &scene.film.filter;
+        if let FilterKind::Box = filter.kind {
+            return PixelFilter::Box;
+        }
+        let window = scene.film.crop;
+        PixelFilter::Sampled {
+            filter: filter.clone(),
+            sampler: FilterSampler::new(filter),
+            mass_x: window_filter_mass(filter, window[2]),
+            mass_y: window_filter_mass(filter, window[3]),
+            window,
+        }
+    }
+
+    /// The film position of pixel (x, y)'s path for the sample `u`, and
+    /// the path's weight w(dx)·w(dy) / (p(dx)·p(dy)·mass): zero where the
+    /// position falls outside the crop window (no path there, as a
+    /// splatting film has no samples there).
+    #[inline]
+    fn position(&self, x: u32, y: u32, u: Vec2) -> (Vec2, f32) {
+        match self {
+            PixelFilter::Box => (Vec2::new(x as f32, y as f32) + u, 1.0),
+            PixelFilter::Sampled { filter, sampler, mass_x, mass_y, window } => {
+                let ((dx, px), (dy, py)) = (sampler.sample(u.x), sampler.sample(u.y));
+                let local = Vec2::new((x - window[0]) as f32 + 0.5 + dx, (y - window[1]) as f32 + 0.5 + dy);
+                let pos = Vec2::new(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy);
+                if !(local.x >= 0.0 && local.x < window[2] as f32 && local.y >= 0.0 && local.y < window[3] as f32) {
+                    return (pos, 0.0);
+                }
+                let mass = mass_x[(x - window[0]) as usize] * mass_y[(y - window[1]) as usize];
+                let weight = filter.eval(dx) * filter.eval(dy) / (px * py * mass);
+                (pos, if weight.is_finite() { weight } else { 0.0 })
+            }
+        }
+    }
+}
+
 /// Pixels a unit of parallel work in the camera pass.
 const CAMERA_CHUNK: usize = 64;
 
@@ -1113,6 +1187,7 @@ pub fn render<S: Spectrum>(
     // pixel's taking consecutive indices, so that all iterations' together
     // are one sequence of the sampler's.
     let paths = sppm.camera_paths.max(1);
+    let pixel_filter = PixelFilter::new(scene);
     let mut extra_spec = SamplerSpec { seed: scene.sampler.seed ^ 0x6361_6d65_7261, ..scene.sampler };
     extra_spec.set_sample_count(iterations.saturating_mul(paths - 1).max(1));
     let mut later: Vec<Option<VisiblePoint<S>>> = Vec::new();
@@ -1154,7 +1229,7 @@ pub fn render<S: Spectrum>(
                         for (j, (d, vp)) in direct.iter_mut().zip(points.iter_mut()).enumerate() {
                             let i = c * CAMERA_CHUNK + j;
                             let (px, py) = (ox + (i % w as usize) as u32, oy + (i / w as usize) as u32);
-                            let main = sppm.camera_path::<S>(scene, px, py, (&scene.sampler, iteration), wl, later, false);
+                            let main = sppm.camera_path::<S>(scene, &pixel_filter, px, py, (&scene.sampler, iteration), wl, later, false);
                             (*d, *vp) = (main.light, main.vp);
                             if paths > 1 {
                                 // The other paths where they pay (decided on
@@ -1167,7 +1242,7 @@ pub fn render<S: Spectrum>(
                                     let mut sum = main.before_vp;
                                     for p in 0..paths - 1 {
                                         let index = iteration * (paths - 1) + p;
-                                        let b = sppm.camera_path::<S>(scene, px, py, (&extra_spec, index), wl, later, true).before_vp;
+                                        let b = sppm.camera_path::<S>(scene, &pixel_filter, px, py, (&extra_spec, index), wl, later, true).before_vp;
                                         sum += b;
                                         h.add_before(b);
                                     }
