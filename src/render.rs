@@ -129,7 +129,8 @@ fn estimate(scene: &Scene, polarized: bool, passes: bool) -> u64 {
     if let Integrator::Sppm(sppm) = &scene.integrator {
         let points = sppm.photons.points_per_pixel();
         let history = if sppm.camera_paths > 1 { crate::integrator::sppm::HISTORY_PER_PIXEL } else { 0 };
-        return pixels * (points * crate::integrator::sppm::MEMORY_PER_PIXEL + 2 * 4 * 16 + 2 * 12 + history);
+        let filter = crate::integrator::sppm::filter_bytes_per_pixel(&scene.film.filter);
+        return pixels * (points * crate::integrator::sppm::MEMORY_PER_PIXEL + 2 * 4 * 16 + 2 * 12 + history + filter);
     }
     if let Integrator::Particle(_) = &scene.integrator {
         return copies * pixels * 3 * 16 + pixels * (12 + 12) + threads * (w + 2 * border) * (h + 2 * border) * 3 * 16;

@@ -7,7 +7,8 @@ its stone at the named index `diamond`, 2.419, which Mitsuba reads too) and
 the pool under a small sun. Methods: Snell's `path`, `bdpt`, `vcm` and `sppm`
 (each scene's best measured setting, see SCENES below) and Mitsuba 3.9.1
 `llvm_ad_rgb`'s `path` on the same XML (when Mitsuba imports here or in
-.venv-mitsuba). Every render has a box pixel filter and the scene's own
+.venv-mitsuba). Every render has a box pixel filter (`--filter scene`: the
+scene's own, for all renders and the reference) and the scene's own
 max_depth and sampler (sppm's camera paths: the sampler SCENES names).
 
 Equal time: each method is first rendered at a small count (seed 999); its
@@ -91,10 +92,17 @@ def integrator_xml(kind, props):
     return f'<integrator type="{kind}">{inner}</integrator>'
 
 
+# The pixel filter of every render: a box (the default; `sppm` long took
+# only a box) or the scene's own (--filter scene; Mitsuba's default is a
+# Gaussian, which `path` splats over neighbouring pixels).
+BOX_FILTER = True
+
+
 def variant(scene_file, integrator, sampler, tag):
     """A copy of the scene beside it with `integrator`, a box pixel filter
-    and, if given, `sampler`."""
-    return scene_variant(os.path.join(ROOT, scene_file), f".caustic-eff-{tag}-", integrator, sampler, box_filter=True)
+    (unless --filter scene) and, if given, `sampler`."""
+    return scene_variant(os.path.join(ROOT, scene_file), f".caustic-eff-{tag}-", integrator, sampler,
+                         box_filter=BOX_FILTER)
 
 
 def snell_render(args, xml, count, seed, out, defines):
@@ -151,9 +159,13 @@ def main():
     ap.add_argument("--sppm", action="append", default=[], metavar="KEY=VALUE,...",
                     help="an sppm setting to measure instead of the scene's (repeatable), e.g. "
                          "photons=indirect,radius_footprints=3 (sampler=NAME: the camera paths' sampler)")
+    ap.add_argument("--filter", choices=["box", "scene"], default="box",
+                    help="every render's pixel filter: a box, or the scene's own")
     ap.add_argument("--json")
     ap.add_argument("--snell", default=os.path.join(ROOT, "target", "release", "snell"))
     args = ap.parse_args()
+    global BOX_FILTER
+    BOX_FILTER = args.filter == "box"
     methods = args.methods.split(",")
     for m in methods:
         if m not in METHODS:
@@ -207,6 +219,7 @@ def main():
             print(f"== {name} ({sc['file']}, max_depth {defines['max_depth']}, -D {sc['defines']}); "
                   f"sppm's camera sampler {sc['sppm_sampler'] or 'as the scene'}")
             scale = "" if args.ref_scale == 1.0 else f"-x{args.ref_scale}"
+            scale += "" if BOX_FILTER else "-scene-filter"
             ref_file = os.path.join(args.ref_dir, f"{name}-{args.res}{scale}.pfm")
             if not os.path.exists(ref_file):
                 if sc["ref"][0] == "path":

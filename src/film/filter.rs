@@ -262,73 +262,6 @@ impl Filter {
     }
 }
 
-/// Offsets drawn in proportion to a filter's magnitude |w(x)|, for an
-/// estimator that takes one position per pixel instead of splatting
-/// samples over the footprint (`sppm`'s visible points): a position x drawn
-/// with density p(x) and weighted w(x)/p(x) has the expectation ∫ w·L, the
-/// filtered pixel's numerator. pbrt-v4's filter sampling, one axis at a
-/// time (the filters are separable).
-///
-/// The density is piecewise constant over cells of 1/64 pixel, each cell's
-/// value the largest |w| at its ends and middle plus a floor of 10⁻³ of the
-/// peak, so it is positive wherever the filter may be non-zero: the
-/// weight w/p is then exact for any filter, and close to constant for the
-/// positive ones.
-#[derive(Clone, Debug)]
-pub struct FilterSampler {
-    radius: f32,
-    /// Cell width (pixels).
-    cell: f32,
-    /// Cumulative probabilities at the cells' left ends, then 1.
-    cdf: Vec<f32>,
-}
-
-impl FilterSampler {
-    pub fn new(filter: &Filter) -> FilterSampler {
-        let radius = filter.radius();
-        let cells = ((2.0 * radius * 64.0).ceil() as usize).max(2);
-        let cell = 2.0 * radius / cells as f32;
-        let at = |i: f32| filter.eval(-radius + i * cell).abs();
-        let values: Vec<f64> = (0..cells).map(|i| at(i as f32).max(at(i as f32 + 0.5)).max(at(i as f32 + 1.0)) as f64).collect();
-        let peak = values.iter().fold(0.0f64, |m, &v| m.max(v));
-        let floor = 1e-3 * if peak > 0.0 { peak } else { 1.0 };
-        let total: f64 = values.iter().map(|v| v + floor).sum();
-        let mut cdf = Vec::with_capacity(cells + 1);
-        let mut acc = 0.0f64;
-        cdf.push(0.0);
-        for v in &values {
-            acc += v + floor;
-            cdf.push((acc / total) as f32);
-        }
-        cdf[cells] = 1.0;
-        FilterSampler { radius, cell, cdf }
-    }
-
-    /// An offset x in [−radius, radius] for `u` in [0, 1), and its density.
-    pub fn sample(&self, u: f32) -> (f32, f32) {
-        let cells = self.cdf.len() - 1;
-        // The cell whose cumulative range holds u.
-        let i = (self.cdf.partition_point(|&c| c <= u).max(1) - 1).min(cells - 1);
-        let (lo, hi) = (self.cdf[i], self.cdf[i + 1]);
-        let mass = hi - lo;
-        let t = if mass > 0.0 { ((u - lo) / mass).clamp(0.0, 1.0) } else { 0.5 };
-        let x = (-self.radius + (i as f32 + t) * self.cell).clamp(-self.radius, self.radius);
-        // The density of the cell x lies in (rounding can put x on the
-        // next cell's edge): the same as `pdf` reports.
-        (x, self.pdf(x))
-    }
-
-    /// The density of [`FilterSampler::sample`] at `x` (0 outside the radius).
-    pub fn pdf(&self, x: f32) -> f32 {
-        if !(x.abs() <= self.radius) {
-            return 0.0;
-        }
-        let cells = self.cdf.len() - 1;
-        let i = (((x + self.radius) / self.cell) as usize).min(cells - 1);
-        (self.cdf[i + 1] - self.cdf[i]) / self.cell
-    }
-}
-
 /// The box filter: 1 on [−½, ½), else 0.
 #[inline(always)]
 fn box_value(x: f32) -> f32 {
@@ -429,48 +362,6 @@ mod tests {
             }
         }
         assert!(FilterKind::Lanczos { lobes: 3 }.eval(1.5) < 0.0);
-    }
-
-    /// Offsets drawn by `FilterSampler` and weighted w/p average the
-    /// filter's integral, and a step function's filtered value: the
-    /// sampling is unbiased for positive filters and for those with
-    /// negative lobes, and its density is the one it reports.
-    #[test]
-    fn filter_sampling_reproduces_the_filtered_integrals() {
-        let kinds = [
-            FilterKind::Tent { radius: 1.5 },
-            FilterKind::Gaussian { stddev: 0.5, radius: 2.0 },
-            FilterKind::Mitchell { b: 1.0 / 3.0, c: 1.0 / 3.0 },
-            FilterKind::Mitchell { b: 0.0, c: 0.5 },
-            FilterKind::Lanczos { lobes: 3 },
-        ];
-        for k in kinds {
-            let f = Filter::new(k);
-            let s = FilterSampler::new(&f);
-            let r = f.radius();
-            let total = integral(|x| f.eval(x), r);
-            let step = integral(|x| if x > 0.3 { f.eval(x) } else { 0.0 }, r);
-            let n = 400_000;
-            let (mut sum, mut sum_step) = (0.0f64, 0.0f64);
-            for i in 0..n {
-                let u = (i as f32 + 0.5) / n as f32;
-                let (x, pdf) = s.sample(u);
-                assert!(x.abs() <= r && pdf > 0.0, "{k:?}: u {u} gave x {x}, pdf {pdf}");
-                assert!((s.pdf(x) - pdf).abs() <= 1e-3 * pdf, "{k:?}: pdf({x}) {} against {pdf}", s.pdf(x));
-                let w = (f.eval(x) / pdf) as f64;
-                sum += w;
-                if x > 0.3 {
-                    sum_step += w;
-                }
-            }
-            let (mean, mean_step) = (sum / n as f64, sum_step / n as f64);
-            assert!((mean / total - 1.0).abs() < 2e-3, "{k:?}: E[w/p] {mean} against ∫w {total}");
-            assert!((mean_step - step).abs() < 2e-3 * total, "{k:?}: step {mean_step} against {step}");
-        }
-        // The density integrates to 1.
-        let s = FilterSampler::new(&Filter::gaussian(0.5));
-        let mass = integral(|x| s.pdf(x), 2.0);
-        assert!((mass - 1.0).abs() < 1e-4, "{mass}");
     }
 
     #[test]

@@ -43,7 +43,7 @@ pub mod output;
 pub mod stokes;
 
 pub use accumulator::{FilmState, Layout, Sink, StateHeader, TileRegion, window_filter_mass};
-pub use filter::{Filter, FilterKind, FilterSampler};
+pub use filter::{Filter, FilterKind};
 
 use crate::spectrum::Rgb;
 

@@ -122,17 +122,17 @@
 //!   `envmap`, `directional`) send photons from a disk of the scene's
 //!   bounding sphere (most of which land where no camera looks in a large
 //!   scene: such scenes need more photons).
-//! - The film's `rfilter` weighs the pixels as a splatting film does, by
-//!   importance sampling: a pixel's camera path starts at an offset drawn
-//!   in proportion to the filter's magnitude ([`FilterSampler`]) and
-//!   everything it adds (its light, its points' throughput) is weighted
-//!   by w/p over the filter's mass inside the crop window (negative lobes
-//!   give negative weights; paths drawn outside the window add nothing).
-//!   So a pixel converges to Σ w·L / Σ w as `path`'s does, and the
-//!   pixels beside a sharp bright edge agree with it (tests/sppm.rs). A
-//!   pixel's estimate stays its own (one visible point a pixel and
-//!   iteration), so a wide filter does not smooth the noise as splatting
-//!   does. A `box` filter keeps the uniform position in the pixel.
+//! - The film's `rfilter` counts as for `path`: each camera path starts
+//!   uniformly in its pixel, and its light reaches the pixels around by
+//!   the filter's weight, as a splatting film adds a sample ([`Splat`]).
+//!   The photons' flux found at a pixel's visible point is kept per pixel
+//!   it reaches (τ per slot, shrunk with that pixel's radius), so a pixel
+//!   is Σ w·L over the paths that reach it over the filter's mass inside
+//!   the crop window, what `path`'s Σ w·L / Σ w converges to (negative
+//!   lobes included). A wide filter smooths the noise as it does for
+//!   `path` (the caustic box with the scene's Gaussian: 5.5× `path`'s
+//!   efficiency, docs/performance.md); τ takes (2⌈r − ½⌉ + 1)² slots a
+//!   pixel (a box: 1, Mitsuba's Gaussian: 25).
 //! - The per-pixel state (R, N, τ) is not a sum of samples: a render cannot
 //!   be split into sample ranges, merged ([`crate::film::FilmState::merge`])
 //!   or resumed from a checkpoint; those refuse. The film state of a pass
@@ -149,7 +149,7 @@
 //!   most one a pixel).
 
 use crate::bsdf::{Bsdf, BsdfContext, Lobe};
-use crate::film::{window_filter_mass, FilmState, Filter, FilterKind, FilterSampler, Image, Sink};
+use crate::film::{window_filter_mass, FilmState, Filter, FilterKind, Image, Sink};
 use crate::geometry::{Ray, SurfaceInteraction};
 use crate::emitter::ShadingPoint;
 use crate::integrator::path::{escaped, hit_weight, next_event};
@@ -273,6 +273,8 @@ struct CameraPath<S: Spectrum> {
     light: Rgb,
     before_vp: Rgb,
     vp: Option<VisiblePoint<S>>,
+    /// Where on the film the path started (film pixels).
+    pos: Vec2,
 }
 
 /// `camera_paths`: what a pixel's camera paths found in the earlier
@@ -313,7 +315,6 @@ impl PathHistory {
 struct PixelStats {
     radius: f64,
     n: f64,
-    tau: [f64; 3],
     /// Sum over iterations of the camera passes' emitted and direct light.
     direct: [f64; 3],
 }
@@ -521,11 +522,9 @@ impl Sppm {
     /// the gather point (pushed onto `later`) if it has a smooth lobe, else
     /// the path stops there; it samples its smooth lobes only, and the path
     /// stops at the vertex after it.
-    #[allow(clippy::too_many_arguments)]
     fn camera_path<S: Spectrum>(
         &self,
         scene: &Scene,
-        pixel: &PixelFilter,
         x: u32,
         y: u32,
         (spec, index): (&SamplerSpec, u32),
@@ -538,13 +537,7 @@ impl Sppm {
             1.0 / scene.film.width as f32,
             1.0 / scene.film.height as f32,
         );
-        // The path's filter weight scales what it adds to the pixel (its
-        // light and its points' throughput), not the throughput Russian
-        // roulette reads: a negative lobe's weight is negative.
-        let (pos, weight) = pixel.position(x, y, sampler.next_2d());
-        if weight == 0.0 {
-            return CameraPath { light: Rgb::zero(), before_vp: Rgb::zero(), vp: None };
-        }
+        let pos = Vec2::new(x as f32, y as f32) + sampler.next_2d();
         let mut ray = scene.camera.sample_ray(pos * inv_size, &mut sampler);
         let mut wl = wl;
         let mut l = S::zero();
@@ -598,7 +591,7 @@ impl Sppm {
             if after >= 1 && self.photons == Photons::AllCaustics && smooth {
                 // Light arriving here straight from a delta bounce is the
                 // photons' (a photon adds at least one segment).
-                later.push(VisiblePoint { si: si.clone(), beta: beta * weight, wl, depth, distance });
+                later.push(VisiblePoint { si: si.clone(), beta, wl, depth, distance });
             }
             if after == 1 && self.photons == Photons::FinalGather {
                 // The final gather's point: light that bounced before it
@@ -608,7 +601,7 @@ impl Sppm {
                 if !smooth {
                     break;
                 }
-                later.push(VisiblePoint { si: si.clone(), beta: beta * weight, wl, depth, distance });
+                later.push(VisiblePoint { si: si.clone(), beta, wl, depth, distance });
                 sample_ctx = ctx.with_lobes(Lobe::SMOOTH);
             }
             if vp.is_none() {
@@ -629,7 +622,7 @@ impl Sppm {
                     sample_ctx = ctx.with_lobes(Lobe::SMOOTH);
                     vp = Some(VisiblePoint {
                         si: si.clone(),
-                        beta: beta * weight,
+                        beta,
                         wl,
                         depth,
                         distance,
@@ -674,8 +667,8 @@ impl Sppm {
             let Some(scale) = crate::integrator::path::russian_roulette(beta.max_component(), eta, depth, self.rr_depth, &mut sampler) else { break };
             beta *= scale;
         }
-        let finite = |l: S| Some((l * weight).to_rgb(&wl)).filter(|rgb| rgb.is_finite()).unwrap_or(Rgb::zero());
-        CameraPath { light: finite(l), before_vp: finite(before_vp.unwrap_or(l)), vp }
+        let finite = |l: S| Some(l.to_rgb(&wl)).filter(|rgb| rgb.is_finite()).unwrap_or(Rgb::zero());
+        CameraPath { light: finite(l), before_vp: finite(before_vp.unwrap_or(l)), vp, pos }
     }
 
     /// Traces photon `index` of iteration `iteration` and adds it to the
@@ -911,7 +904,6 @@ mod tests {
             .map(|_| PixelStats {
                 radius: 0.01 + 0.09 * rng.next_f32() as f64,
                 n: 0.0,
-                tau: [0.0; 3],
                 direct: [0.0; 3],
             })
             .collect();
@@ -1047,61 +1039,145 @@ fn build_targets<S: Spectrum>(scene: &Scene, points: &[Option<VisiblePoint<S>>],
     points.par_iter().map(|vp| vp.as_ref().map(|vp| Target::of(scene.bsdf(&vp.si), vp))).collect_into_vec(out);
 }
 
-/// Where a pixel's camera path starts on the film, and its weight: the
-/// film's reconstruction filter by importance sampling
-/// ([`FilterSampler`]), so that a pixel estimates Σ w·L / Σ w over the
-/// crop window as a splatting film does (`path`'s image). A box filter
-/// keeps the plain uniform position in the pixel, weight 1.
-enum PixelFilter {
-    Box,
-    Sampled {
-        filter: Filter,
-        sampler: FilterSampler,
-        /// The filter's mass inside the crop window, per column and row.
-        mass_x: Vec<f32>,
-        mass_y: Vec<f32>,
-        /// The crop window: origin and size (film pixels).
-        window: [u32; 4],
-    },
+/// The farthest a camera path's light may reach, in pixels each way.
+const MAX_REACH: i32 = 8;
+/// Weights along one axis: 2 · `MAX_REACH` + 1 pixels.
+type AxisWeights = [f32; (2 * MAX_REACH + 1) as usize];
+
+/// How a camera path's light reaches the pixels: through the film's
+/// reconstruction filter, as a splatting film adds a sample, from where
+/// the path started in its pixel (uniformly). The path-traced light of an
+/// iteration is added at once; the photons' flux found at a pixel's
+/// visible points is kept apart for each pixel its paths reach (τ per
+/// slot: SPPM's radius belongs to the pixel whose points gathered it).
+/// A pixel is then Σ w·L over the paths that reach it, over the filter's
+/// mass inside the crop window: what `path`'s Σ w·L / Σ w converges to.
+/// A `box` keeps each path's light in its own pixel (one slot).
+struct Splat {
+    filter: Filter,
+    is_box: bool,
+    /// Pixels each way a path's light reaches: ⌈radius − ½⌉ (a box: 0).
+    reach: i32,
+    /// The crop window's width and height.
+    size: [i32; 2],
+    /// 1 / the filter's mass inside the window, per column and per row.
+    inv_mass: [Vec<f64>; 2],
 }
 
-impl PixelFilter {
-    fn new(scene: &Scene) -> PixelFilter {
-        let filter = &scene.film.filter;
-        if let FilterKind::Box = filter.kind {
-            return PixelFilter::Box;
+impl Splat {
+    fn new(scene: &Scene) -> anyhow::Result<Splat> {
+        let filter = scene.film.filter.clone();
+        let is_box = matches!(filter.kind, FilterKind::Box);
+        let reach = if is_box { 0 } else { (filter.radius() - 0.5).ceil().max(0.0) as i32 };
+        if reach > MAX_REACH {
+            anyhow::bail!(
+                "sppm: the film's rfilter (radius {}) reaches {reach} pixels each way; sppm takes at most {MAX_REACH}",
+                filter.radius()
+            );
         }
-        let window = scene.film.crop;
-        PixelFilter::Sampled {
-            filter: filter.clone(),
-            sampler: FilterSampler::new(filter),
-            mass_x: window_filter_mass(filter, window[2]),
-            mass_y: window_filter_mass(filter, window[3]),
-            window,
+        let [_, _, w, h] = scene.film.crop;
+        let inv_mass = |n: u32| -> Vec<f64> {
+            if is_box {
+                return vec![1.0; n as usize];
+            }
+            window_filter_mass(&filter, n).iter().map(|&m| if m > 0.0 { 1.0 / m as f64 } else { 0.0 }).collect()
+        };
+        let inv_mass = [inv_mass(w), inv_mass(h)];
+        Ok(Splat { filter, is_box, reach, size: [w as i32, h as i32], inv_mass })
+    }
+
+    /// Slots a pixel keeps: one per pixel its paths may reach.
+    fn slots(&self) -> usize {
+        let n = (2 * self.reach + 1) as usize;
+        n * n
+    }
+
+    /// The filter's weights at the 2 · reach + 1 pixels around pixel `j`
+    /// of a row (or column) of `n`, for a start at `p` (window pixels); 0
+    /// outside the window.
+    fn axis(&self, j: i32, p: f32, n: i32, out: &mut AxisWeights) {
+        if self.is_box {
+            out[0] = 1.0;
+            return;
+        }
+        for (t, w) in out.iter_mut().take((2 * self.reach + 1) as usize).enumerate() {
+            let i = j - self.reach + t as i32;
+            *w = if i >= 0 && i < n { self.filter.eval(i as f32 + 0.5 - p) } else { 0.0 };
         }
     }
 
-    /// The film position of pixel (x, y)'s path for the sample `u`, and
-    /// the path's weight w(dx)·w(dy) / (p(dx)·p(dy)·mass): zero where the
-    /// position falls outside the crop window (no path there, as a
-    /// splatting film has no samples there).
+    /// Calls `f(slot, pixel, weight)` for every slot of pixel `i` whose
+    /// path started at `pos`: the pixel it stands for (`None` outside the
+    /// window) and the filter's weight there (possibly 0 or negative).
     #[inline]
-    fn position(&self, x: u32, y: u32, u: Vec2) -> (Vec2, f32) {
-        match self {
-            PixelFilter::Box => (Vec2::new(x as f32, y as f32) + u, 1.0),
-            PixelFilter::Sampled { filter, sampler, mass_x, mass_y, window } => {
-                let ((dx, px), (dy, py)) = (sampler.sample(u.x), sampler.sample(u.y));
-                let local = Vec2::new((x - window[0]) as f32 + 0.5 + dx, (y - window[1]) as f32 + 0.5 + dy);
-                let pos = Vec2::new(x as f32 + 0.5 + dx, y as f32 + 0.5 + dy);
-                if !(local.x >= 0.0 && local.x < window[2] as f32 && local.y >= 0.0 && local.y < window[3] as f32) {
-                    return (pos, 0.0);
-                }
-                let mass = mass_x[(x - window[0]) as usize] * mass_y[(y - window[1]) as usize];
-                let weight = filter.eval(dx) * filter.eval(dy) / (px * py * mass);
-                (pos, if weight.is_finite() { weight } else { 0.0 })
+    fn for_each_weight(&self, i: usize, pos: Vec2, mut f: impl FnMut(usize, Option<usize>, f64)) {
+        let [w, h] = self.size;
+        let (jx, jy) = ((i % w as usize) as i32, (i / w as usize) as i32);
+        let (mut wx, mut wy) = ([0.0; (2 * MAX_REACH + 1) as usize], [0.0; (2 * MAX_REACH + 1) as usize]);
+        self.axis(jx, pos.x, w, &mut wx);
+        self.axis(jy, pos.y, h, &mut wy);
+        let n = 2 * self.reach + 1;
+        for ty in 0..n {
+            for tx in 0..n {
+                let (cx, cy) = (jx - self.reach + tx, jy - self.reach + ty);
+                let inside = cx >= 0 && cy >= 0 && cx < w && cy < h;
+                f((ty * n + tx) as usize, inside.then(|| (cy * w + cx) as usize), wx[tx as usize] as f64 * wy[ty as usize] as f64);
             }
         }
     }
+
+    /// Adds the light `value` of a path of pixel `i` that started at `pos`
+    /// to the path-traced sums of the pixels it reaches.
+    fn add_direct(&self, stats: &mut [PixelStats], i: usize, pos: Vec2, value: [f64; 3]) {
+        self.for_each_weight(i, pos, |_, pixel, weight| {
+            if let (Some(c), true) = (pixel, weight != 0.0) {
+                for (sum, v) in stats[c].direct.iter_mut().zip(value) {
+                    *sum += weight * v;
+                }
+            }
+        });
+    }
+
+    /// Pixel `c`'s photon light: over the pixels whose paths reach it, τ of
+    /// their slot for `c` over (photons · π R²).
+    fn gathered(&self, c: usize, stats: &[PixelStats], tau: &[[f64; 3]], photons: f64) -> [f64; 3] {
+        let [w, h] = self.size;
+        let (cx, cy) = ((c % w as usize) as i32, (c / w as usize) as i32);
+        let n = 2 * self.reach + 1;
+        let slots = self.slots();
+        let mut out = [0.0f64; 3];
+        for ty in 0..n {
+            for tx in 0..n {
+                // The pixel j whose slot (tx, ty) stands for c.
+                let (jx, jy) = (cx + self.reach - tx, cy + self.reach - ty);
+                if jx < 0 || jy < 0 || jx >= w || jy >= h {
+                    continue;
+                }
+                let j = (jy * w + jx) as usize;
+                let area = std::f64::consts::PI * stats[j].radius * stats[j].radius;
+                if area > 0.0 {
+                    let t = &tau[j * slots + (ty * n + tx) as usize];
+                    for k in 0..3 {
+                        out[k] += t[k] / (photons * area);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// 1 / the filter's mass inside the window at pixel `c`.
+    fn inv_mass(&self, c: usize) -> f64 {
+        let w = self.size[0] as usize;
+        self.inv_mass[0][c % w] * self.inv_mass[1][c / w]
+    }
+}
+
+/// Bytes `sppm` keeps per pixel for the film's filter `filter`: the
+/// photons' flux per pixel a path reaches ([`Splat`]) and the path's start.
+pub fn filter_bytes_per_pixel(filter: &Filter) -> u64 {
+    let reach = if matches!(filter.kind, FilterKind::Box) { 0 } else { (filter.radius() - 0.5).ceil().max(0.0) as u64 };
+    (2 * reach + 1).pow(2) * 24 + 8
 }
 
 /// Pixels a unit of parallel work in the camera pass.
@@ -1160,11 +1236,15 @@ pub fn render<S: Spectrum>(
         PixelStats {
             radius: r0,
             n: 0.0,
-            tau: [0.0; 3],
             direct: [0.0; 3]
         };
         pixels
     ];
+    // How each camera path's light reaches the pixels (the film's
+    // filter), and each pixel's photon flux τ per pixel its path reaches.
+    let splat = Splat::new(scene)?;
+    let mut tau = vec![[0.0f64; 3]; pixels * splat.slots()];
+    let mut positions = vec![Vec2::ZERO; pixels];
     // Photons get their own independent random numbers.
     let photon_spec = SamplerSpec {
         kind: SamplerKind::Independent,
@@ -1180,14 +1260,16 @@ pub fn render<S: Spectrum>(
     let mut direct = vec![Rgb::zero(); pixels];
     let mut points: Vec<Option<VisiblePoint<S>>> = (0..pixels).map(|_| None).collect();
     // (and, with `camera_paths` > 1, its pixels' `PathHistory`)
-    let mut chunk_later: Vec<(Vec<VisiblePoint<S>>, Vec<u32>, Vec<PathHistory>)> =
+    // (and the other camera paths' light where they were traced: pixel,
+    // film position and light, splatted after the iteration)
+    #[allow(clippy::type_complexity)]
+    let mut chunk_later: Vec<(Vec<VisiblePoint<S>>, Vec<u32>, Vec<PathHistory>, Vec<(u32, Vec2, Rgb)>)> =
         (0..pixels.div_ceil(CAMERA_CHUNK)).map(|_| Default::default()).collect();
     // `camera_paths`: the main paths draw from the scene's sampler as with
     // one path; the others from one of their own (another seed), each
     // pixel's taking consecutive indices, so that all iterations' together
     // are one sequence of the sampler's.
     let paths = sppm.camera_paths.max(1);
-    let pixel_filter = PixelFilter::new(scene);
     let mut extra_spec = SamplerSpec { seed: scene.sampler.seed ^ 0x6361_6d65_7261, ..scene.sampler };
     extra_spec.set_sample_count(iterations.saturating_mul(paths - 1).max(1));
     let mut later: Vec<Option<VisiblePoint<S>>> = Vec::new();
@@ -1218,19 +1300,21 @@ pub fn render<S: Spectrum>(
                 direct
                     .par_chunks_mut(CAMERA_CHUNK)
                     .zip(points.par_chunks_mut(CAMERA_CHUNK))
+                    .zip(positions.par_chunks_mut(CAMERA_CHUNK))
                     .zip(chunk_later.par_iter_mut())
                     .enumerate()
-                    .for_each(|(c, ((direct, points), (later, later_pixel, history)))| {
+                    .for_each(|(c, (((direct, points), positions), (later, later_pixel, history, others)))| {
                         later.clear();
                         later_pixel.clear();
+                        others.clear();
                         if paths > 1 && history.len() != direct.len() {
                             history.resize(direct.len(), PathHistory::default());
                         }
-                        for (j, (d, vp)) in direct.iter_mut().zip(points.iter_mut()).enumerate() {
+                        for (j, ((d, vp), pos)) in direct.iter_mut().zip(points.iter_mut()).zip(positions.iter_mut()).enumerate() {
                             let i = c * CAMERA_CHUNK + j;
                             let (px, py) = (ox + (i % w as usize) as u32, oy + (i / w as usize) as u32);
-                            let main = sppm.camera_path::<S>(scene, &pixel_filter, px, py, (&scene.sampler, iteration), wl, later, false);
-                            (*d, *vp) = (main.light, main.vp);
+                            let main = sppm.camera_path::<S>(scene, px, py, (&scene.sampler, iteration), wl, later, false);
+                            (*d, *vp, *pos) = (main.light, main.vp, main.pos - Vec2::new(ox as f32, oy as f32));
                             if paths > 1 {
                                 // The other paths where they pay (decided on
                                 // earlier paths only, so the average stays
@@ -1239,14 +1323,17 @@ pub fn render<S: Spectrum>(
                                 // path's.
                                 let h = &mut history[j];
                                 if h.wants_more(iteration) {
-                                    let mut sum = main.before_vp;
+                                    // Each path's light counts where it
+                                    // started on the film (the filter).
+                                    let share = 1.0 / paths as f32;
                                     for p in 0..paths - 1 {
                                         let index = iteration * (paths - 1) + p;
-                                        let b = sppm.camera_path::<S>(scene, &pixel_filter, px, py, (&extra_spec, index), wl, later, true).before_vp;
-                                        sum += b;
-                                        h.add_before(b);
+                                        let other = sppm.camera_path::<S>(scene, px, py, (&extra_spec, index), wl, later, true);
+                                        h.add_before(other.before_vp);
+                                        let at = other.pos - Vec2::new(ox as f32, oy as f32);
+                                        others.push((i as u32, at, other.before_vp * share));
                                     }
-                                    *d += sum * (1.0 / paths as f32) - main.before_vp;
+                                    *d += main.before_vp * share - main.before_vp;
                                 }
                                 h.add_before(main.before_vp);
                                 h.add_main(main.light);
@@ -1257,7 +1344,7 @@ pub fn render<S: Spectrum>(
             });
             later.clear();
             later_pixel.clear();
-            for (vps, pix, _) in &mut chunk_later {
+            for (vps, pix, _, _) in &mut chunk_later {
                 later.extend(vps.drain(..).map(Some));
                 later_pixel.append(pix);
             }
@@ -1317,31 +1404,48 @@ pub fn render<S: Spectrum>(
                     }
                 }
             }
+            // The iteration's path-traced light (each camera path's, and the
+            // final gathers' photons at its main path's start) through the
+            // film's filter into the pixels it reaches.
+            for (i, (d, pos)) in direct.iter().zip(&positions).enumerate() {
+                let mut value = if d.is_finite() { [d[0] as f64, d[1] as f64, d[2] as f64] } else { [0.0; 3] };
+                if let Some(light) = later_light.get(i) {
+                    for c in 0..3 {
+                        value[c] += light[c];
+                    }
+                }
+                splat.add_direct(&mut stats, i, *pos, value);
+            }
+            for (_, _, _, others) in &chunk_later {
+                for &(i, pos, light) in others {
+                    if light.is_finite() {
+                        splat.add_direct(&mut stats, i as usize, pos, [light[0] as f64, light[1] as f64, light[2] as f64]);
+                    }
+                }
+            }
             let alpha = sppm.alpha as f64;
+            let slots = splat.slots();
             pool.install(|| {
                 stats
                     .par_iter_mut()
-                    .zip(&direct)
+                    .zip(tau.par_chunks_mut(slots))
+                    .zip(&positions)
                     .enumerate()
-                    .for_each(|(i, (st, d))| {
-                        if d.is_finite() {
-                            for c in 0..3 {
-                                st.direct[c] += d[c] as f64;
-                            }
-                        }
-                        if let Some(light) = later_light.get(i) {
-                            for c in 0..3 {
-                                st.direct[c] += light[c];
-                            }
-                        }
+                    .for_each(|(i, ((st, tau), pos))| {
                         let m = sums.points[i].count.load(Ordering::Relaxed) as f64;
                         if m > 0.0 {
                             let n_new = st.n + alpha * m;
                             let ratio = n_new / (st.n + m);
-                            for c in 0..3 {
-                                let phi = sums.phi(i, c) as f64 / FIXED_SCALE;
-                                st.tau[c] = (st.tau[c] + phi) * ratio;
-                            }
+                            let phi = [0, 1, 2].map(|c| sums.phi(i, c) as f64 / FIXED_SCALE);
+                            // The flux counts for each pixel the path's
+                            // start reaches, by the filter's weight there.
+                            // (Every slot takes the ratio: the radius
+                            // shrinks for all the pixel's flux.)
+                            splat.for_each_weight(i, *pos, |slot, _, weight| {
+                                for c in 0..3 {
+                                    tau[slot][c] = (tau[slot][c] + phi[c] * weight) * ratio;
+                                }
+                            });
                             st.n = n_new;
                             st.radius *= ratio.sqrt();
                         }
@@ -1350,7 +1454,7 @@ pub fn render<S: Spectrum>(
             done += 1;
             bar.inc(pixels as u64);
         }
-        state = develop(scene, photon_count, &header, &stats, done);
+        state = develop(photon_count, &header, &stats, &tau, &splat, done);
         let image = state.develop();
         on_pass(&PassReport {
             pass: k as u32 + 1,
@@ -1365,7 +1469,7 @@ pub fn render<S: Spectrum>(
     }
     if state.spp() != done {
         // Stopped between passes' ends: the iterations that did finish.
-        state = develop(scene, photon_count, &header, &stats, done);
+        state = develop(photon_count, &header, &stats, &tau, &splat, done);
     }
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
@@ -1393,16 +1497,18 @@ pub fn render<S: Spectrum>(
 }
 
 /// The film state of the image after `iterations` iterations: each pixel's
-/// radiance as one sample of weight 1 (a box filter at the pixel's centre).
+/// radiance (already filtered, [`Splat`]) as one sample of weight 1 at its
+/// centre (a box).
 fn develop(
-    scene: &Scene,
     photon_count: u32,
     header: &crate::film::StateHeader,
     stats: &[PixelStats],
+    tau: &[[f64; 3]],
+    splat: &Splat,
     iterations: u32,
 ) -> FilmState {
     let mut state = FilmState::empty(header.clone());
-    let [_, _, w, h] = scene.film.crop;
+    let [w, h] = splat.size.map(|n| n as u32);
     if iterations == 0 {
         return state;
     }
@@ -1412,14 +1518,10 @@ fn develop(
     let k = iterations as f64;
     let photons = k * photon_count.max(1) as f64;
     for (i, st) in stats.iter().enumerate() {
-        let area = std::f64::consts::PI * st.radius * st.radius;
+        let gathered = splat.gathered(i, stats, tau, photons);
+        let inv_mass = splat.inv_mass(i);
         let v = |c: usize| {
-            let x = st.direct[c] / k
-                + if area > 0.0 {
-                    st.tau[c] / (photons * area)
-                } else {
-                    0.0
-                };
+            let x = (st.direct[c] / k + gathered[c]) * inv_mass;
             if x.is_finite() { x as f32 } else { 0.0 }
         };
         let pos = Vec2::new((i % w as usize) as f32 + 0.5, (i / w as usize) as f32 + 0.5);
