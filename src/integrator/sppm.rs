@@ -146,7 +146,9 @@
 //!   stored, so memory does not grow with `photon_count`. With
 //!   `photons = all_caustics` or `final_gather` each later vertex of an
 //!   iteration's camera paths takes as much again (`final_gather`: at
-//!   most one a pixel).
+//!   most one a pixel). The film's filter adds 24 bytes a pixel per slot
+//!   of τ ([`filter_bytes_per_pixel`]: 608 for Mitsuba's Gaussian, 32
+//!   for a box).
 
 use crate::bsdf::{Bsdf, BsdfContext, Lobe};
 use crate::film::{window_filter_mass, FilmState, Filter, FilterKind, Image, Sink};
