@@ -124,7 +124,7 @@
 //!   scene: such scenes need more photons).
 //! - The film's `rfilter` counts as for `path`: each camera path starts
 //!   uniformly in its pixel, and its light reaches the pixels around by
-//!   the filter's weight, as a splatting film adds a sample ([`Splat`]).
+//!   the filter's weight, as a splatting film adds a sample (`Splat`).
 //!   The photons' flux found at a pixel's visible point is kept per pixel
 //!   it reaches (τ per slot, shrunk with that pixel's radius), so a pixel
 //!   is Σ w·L over the paths that reach it over the filter's mass inside
@@ -1176,7 +1176,7 @@ impl Splat {
 }
 
 /// Bytes `sppm` keeps per pixel for the film's filter `filter`: the
-/// photons' flux per pixel a path reaches ([`Splat`]) and the path's start.
+/// photons' flux per pixel a path reaches (`Splat`) and the path's start.
 pub fn filter_bytes_per_pixel(filter: &Filter) -> u64 {
     let reach = if matches!(filter.kind, FilterKind::Box) { 0 } else { (filter.radius() - 0.5).ceil().max(0.0) as u64 };
     (2 * reach + 1).pow(2) * 24 + 8
