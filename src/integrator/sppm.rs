@@ -1102,9 +1102,16 @@ impl Splat {
             out[0] = 1.0;
             return;
         }
-        for (t, w) in out.iter_mut().take((2 * self.reach + 1) as usize).enumerate() {
-            let i = j - self.reach + t as i32;
-            *w = if i >= 0 && i < n { self.filter.eval(i as f32 + 0.5 - p) } else { 0.0 };
+        // `eval_span`: the film's own lookups (`Filter::eval`'s bits), a few
+        // at a time.
+        let count = (2 * self.reach + 1) as usize;
+        let first = j - self.reach;
+        self.filter.eval_span(first, p, &mut out[..count]);
+        for (t, w) in out[..count].iter_mut().enumerate() {
+            let i = first + t as i32;
+            if i < 0 || i >= n {
+                *w = 0.0;
+            }
         }
     }
 
