@@ -1057,8 +1057,7 @@ type AxisWeights = [f32; (2 * MAX_REACH + 1) as usize];
 /// A `box` keeps each path's light in its own pixel (one slot).
 struct Splat {
     filter: Filter,
-    is_box: bool,
-    /// Pixels each way a path's light reaches: ⌈radius − ½⌉ (a box: 0).
+    /// Pixels each way a path's light reaches ([`reach`]).
     reach: i32,
     /// The crop window's width and height.
     size: [i32; 2],
@@ -1070,7 +1069,7 @@ impl Splat {
     fn new(scene: &Scene) -> anyhow::Result<Splat> {
         let filter = scene.film.filter.clone();
         let is_box = matches!(filter.kind, FilterKind::Box);
-        let reach = if is_box { 0 } else { (filter.radius() - 0.5).ceil().max(0.0) as i32 };
+        let reach = reach(&filter);
         if reach > MAX_REACH {
             anyhow::bail!(
                 "sppm: the film's rfilter (radius {}) reaches {reach} pixels each way; sppm takes at most {MAX_REACH}",
@@ -1085,7 +1084,7 @@ impl Splat {
             window_filter_mass(&filter, n).iter().map(|&m| if m > 0.0 { 1.0 / m as f64 } else { 0.0 }).collect()
         };
         let inv_mass = [inv_mass(w), inv_mass(h)];
-        Ok(Splat { filter, is_box, reach, size: [w as i32, h as i32], inv_mass })
+        Ok(Splat { filter, reach, size: [w as i32, h as i32], inv_mass })
     }
 
     /// Slots a pixel keeps: one per pixel its paths may reach.
@@ -1098,7 +1097,9 @@ impl Splat {
     /// of a row (or column) of `n`, for a start at `p` (window pixels); 0
     /// outside the window.
     fn axis(&self, j: i32, p: f32, n: i32, out: &mut AxisWeights) {
-        if self.is_box {
+        // A box keeps the path in its own pixel, whatever the start's
+        // rounding at the pixel's edge.
+        if let FilterKind::Box = self.filter.kind {
             out[0] = 1.0;
             return;
         }
@@ -1182,11 +1183,16 @@ impl Splat {
     }
 }
 
+/// Pixels each way the light of a path that starts in a pixel reaches
+/// through `filter`: ⌈radius − ½⌉ (a box: 0).
+fn reach(filter: &Filter) -> i32 {
+    if let FilterKind::Box = filter.kind { 0 } else { (filter.radius() - 0.5).ceil().max(0.0) as i32 }
+}
+
 /// Bytes `sppm` keeps per pixel for the film's filter `filter`: the
 /// photons' flux per pixel a path reaches (`Splat`) and the path's start.
 pub fn filter_bytes_per_pixel(filter: &Filter) -> u64 {
-    let reach = if matches!(filter.kind, FilterKind::Box) { 0 } else { (filter.radius() - 0.5).ceil().max(0.0) as u64 };
-    (2 * reach + 1).pow(2) * 24 + 8
+    (2 * reach(filter) as u64 + 1).pow(2) * 24 + 8
 }
 
 /// Pixels a unit of parallel work in the camera pass.
