@@ -825,13 +825,47 @@ fn bounding_sphere(scene: &Scene) -> (Vec3, f32) {
 
 #[cfg(test)]
 mod tests {
-    use super::{Grid, PixelStats, Target, VisiblePoint};
+    use super::{Grid, PixelStats, Splat, Target, VisiblePoint};
     use crate::bsdf::{Bsdf, Diffuse};
     use crate::geometry::SurfaceInteraction;
     use crate::math::{Frame, Pcg32};
     use crate::spectrum::{Rgb, Sampled, Spectrum};
     use crate::texture::Texture;
     use glam::Vec3;
+
+    /// The splat's bands of rows: within a phase the rows they reach do
+    /// not meet, and each band's slice holds every row its paths reach, so
+    /// the two phases add every path's light once, in parallel.
+    #[test]
+    fn splat_bands_cover_their_reach_without_meeting() {
+        for (w, h, reach) in [(5usize, 1usize, 0i32), (3, 17, 2), (4, 64, 2), (2, 9, 8), (7, 40, 3)] {
+            let splat = Splat {
+                filter: crate::film::Filter::new(crate::film::FilterKind::Box),
+                reach,
+                size: [w as i32, h as i32],
+                inv_mass: [vec![1.0; w], vec![1.0; h]],
+            };
+            let rows = splat.band_rows();
+            let mut stats = vec![PixelStats { radius: 0.0, n: 0.0, direct: [0.0; 3] }; w * h];
+            let mut sources = vec![0u32; h];
+            for phase in 0..2 {
+                let mut last_end = 0;
+                for (band, first, slice) in splat.bands(&mut stats, phase) {
+                    assert_eq!(band % 2, phase);
+                    assert_eq!(slice.len() % w, 0);
+                    let end = first + slice.len() / w;
+                    assert!(first >= last_end || band == phase, "{w}×{h}, reach {reach}: bands of one phase meet");
+                    last_end = end;
+                    for y in band * rows..((band + 1) * rows).min(h) {
+                        sources[y] += 1;
+                        let (lo, hi) = (y.saturating_sub(reach as usize), (y + reach as usize).min(h - 1));
+                        assert!(first <= lo && hi < end, "{w}×{h}, reach {reach}: row {y} reaches {lo}..={hi} outside {first}..{end}");
+                    }
+                }
+            }
+            assert!(sources.iter().all(|&n| n == 1), "{w}×{h}, reach {reach}: each row a source once");
+        }
+    }
 
     /// A deposit at a `diffuse` point takes ρ/π from its target instead of
     /// evaluating the BSDF: the same value (to rounding) for every photon
@@ -1137,15 +1171,44 @@ impl Splat {
     }
 
     /// Adds the light `value` of a path of pixel `i` that started at `pos`
-    /// to the path-traced sums of the pixels it reaches.
-    fn add_direct(&self, stats: &mut [PixelStats], i: usize, pos: Vec2, value: [f64; 3]) {
+    /// to the path-traced sums of the pixels it reaches; `stats` holds the
+    /// window's rows from `first_row` on (a band, [`Splat::bands`]).
+    fn add_direct(&self, stats: &mut [PixelStats], first_row: usize, i: usize, pos: Vec2, value: [f64; 3]) {
+        let skip = first_row * self.size[0] as usize;
         self.for_each_weight(i, pos, |_, pixel, weight| {
             if let (Some(c), true) = (pixel, weight != 0.0) {
-                for (sum, v) in stats[c].direct.iter_mut().zip(value) {
+                for (sum, v) in stats[c - skip].direct.iter_mut().zip(value) {
                     *sum += weight * v;
                 }
             }
         });
+    }
+
+    /// Rows of the window in one band of paths splatted by one worker: more
+    /// than twice the reach, so that the rows two bands apart write to do
+    /// not meet.
+    fn band_rows(&self) -> usize {
+        (2 * self.reach as usize + 1).max(4)
+    }
+
+    /// `stats` cut into the bands of one `phase` (0: the even bands, 1: the
+    /// odd): for each, its band index and the rows its paths reach (the
+    /// band and `reach` rows each side, inside the window), as the first
+    /// row and those rows' stats. The bands of a phase reach disjoint rows.
+    fn bands<'a>(&self, stats: &'a mut [PixelStats], phase: usize) -> Vec<(usize, usize, &'a mut [PixelStats])> {
+        let (w, h) = (self.size[0] as usize, self.size[1] as usize);
+        let (rows, reach) = (self.band_rows(), self.reach as usize);
+        let mut out = Vec::new();
+        let (mut rest, mut rest_row) = (stats, 0usize);
+        for band in (phase..h.div_ceil(rows)).step_by(2) {
+            let first = (band * rows).saturating_sub(reach);
+            let end = ((band + 1) * rows + reach).min(h);
+            let (_, tail) = std::mem::take(&mut rest).split_at_mut((first - rest_row) * w);
+            let (mine, tail) = tail.split_at_mut((end - first) * w);
+            out.push((band, first, mine));
+            (rest, rest_row) = (tail, end);
+        }
+        out
     }
 
     /// Pixel `c`'s photon light: over the pixels whose paths reach it, τ of
@@ -1421,22 +1484,37 @@ pub fn render<S: Spectrum>(
             }
             // The iteration's path-traced light (each camera path's, and the
             // final gathers' photons at its main path's start) through the
-            // film's filter into the pixels it reaches.
-            for (i, (d, pos)) in direct.iter().zip(&positions).enumerate() {
-                let mut value = if d.is_finite() { [d[0] as f64, d[1] as f64, d[2] as f64] } else { [0.0; 3] };
-                if let Some(light) = later_light.get(i) {
-                    for c in 0..3 {
-                        value[c] += light[c];
-                    }
-                }
-                splat.add_direct(&mut stats, i, *pos, value);
-            }
-            for (_, _, _, others) in &chunk_later {
-                for &(i, pos, light) in others {
-                    if light.is_finite() {
-                        splat.add_direct(&mut stats, i as usize, pos, [light[0] as f64, light[1] as f64, light[2] as f64]);
-                    }
-                }
+            // film's filter into the pixels it reaches: bands of rows in
+            // parallel, the even bands and then the odd (whose rows reached
+            // do not meet), so each pixel's sums take the same order
+            // whatever the threads.
+            let band_pixels = splat.band_rows() * w as usize;
+            for phase in 0..2 {
+                let bands = splat.bands(&mut stats, phase);
+                pool.install(|| {
+                    bands.into_par_iter().for_each(|(band, first_row, stats)| {
+                        let sources = band * band_pixels..((band + 1) * band_pixels).min(pixels);
+                        for i in sources.clone() {
+                            let d = direct[i];
+                            let mut value = if d.is_finite() { [d[0] as f64, d[1] as f64, d[2] as f64] } else { [0.0; 3] };
+                            if let Some(light) = later_light.get(i) {
+                                for c in 0..3 {
+                                    value[c] += light[c];
+                                }
+                            }
+                            splat.add_direct(stats, first_row, i, positions[i], value);
+                        }
+                        // The other paths, kept by chunks of pixels.
+                        let chunks = sources.start / CAMERA_CHUNK..sources.end.div_ceil(CAMERA_CHUNK);
+                        for (_, _, _, others) in &chunk_later[chunks] {
+                            for &(i, pos, light) in others {
+                                if sources.contains(&(i as usize)) && light.is_finite() {
+                                    splat.add_direct(stats, first_row, i as usize, pos, [light[0] as f64, light[1] as f64, light[2] as f64]);
+                                }
+                            }
+                        }
+                    })
+                });
             }
             let alpha = sppm.alpha as f64;
             let slots = splat.slots();
@@ -1469,7 +1547,7 @@ pub fn render<S: Spectrum>(
             done += 1;
             bar.inc(pixels as u64);
         }
-        state = develop(photon_count, &header, &stats, &tau, &splat, done);
+        state = pool.install(|| develop(photon_count, &header, &stats, &tau, &splat, done));
         let image = state.develop();
         on_pass(&PassReport {
             pass: k as u32 + 1,
@@ -1484,7 +1562,7 @@ pub fn render<S: Spectrum>(
     }
     if state.spp() != done {
         // Stopped between passes' ends: the iterations that did finish.
-        state = develop(photon_count, &header, &stats, &tau, &splat, done);
+        state = pool.install(|| develop(photon_count, &header, &stats, &tau, &splat, done));
     }
     bar.finish_and_clear();
     let seconds = start.elapsed().as_secs_f64();
@@ -1532,15 +1610,24 @@ fn develop(
     let filter = Filter::new(crate::film::FilterKind::Box);
     let k = iterations as f64;
     let photons = k * photon_count.max(1) as f64;
-    for (i, st) in stats.iter().enumerate() {
-        let gathered = splat.gathered(i, stats, tau, photons);
-        let inv_mass = splat.inv_mass(i);
-        let v = |c: usize| {
-            let x = (st.direct[c] / k + gathered[c]) * inv_mass;
-            if x.is_finite() { x as f32 } else { 0.0 }
-        };
+    // Each pixel's value in parallel (the slots of the pixels around it),
+    // then into the film in order.
+    let values: Vec<Rgb> = stats
+        .par_iter()
+        .enumerate()
+        .map(|(i, st)| {
+            let gathered = splat.gathered(i, stats, tau, photons);
+            let inv_mass = splat.inv_mass(i);
+            let v = |c: usize| {
+                let x = (st.direct[c] / k + gathered[c]) * inv_mass;
+                if x.is_finite() { x as f32 } else { 0.0 }
+            };
+            Rgb::new(v(0), v(1), v(2))
+        })
+        .collect();
+    for (i, value) in values.into_iter().enumerate() {
         let pos = Vec2::new((i % w as usize) as f32 + 0.5, (i / w as usize) as f32 + 0.5);
-        sink.add_sample(&filter, pos, Rgb::new(v(0), v(1), v(2)), None, &extra);
+        sink.add_sample(&filter, pos, value, None, &extra);
     }
     state.add_sink(&sink);
     state.header.samples_taken = w as u64 * h as u64 * iterations as u64;
