@@ -1174,14 +1174,31 @@ impl Splat {
     /// to the path-traced sums of the pixels it reaches; `stats` holds the
     /// window's rows from `first_row` on (a band, [`Splat::bands`]).
     fn add_direct(&self, stats: &mut [PixelStats], first_row: usize, i: usize, pos: Vec2, value: [f64; 3]) {
-        let skip = first_row * self.size[0] as usize;
-        self.for_each_weight(i, pos, |_, pixel, weight| {
-            if let (Some(c), true) = (pixel, weight != 0.0) {
-                for (sum, v) in stats[c - skip].direct.iter_mut().zip(value) {
+        // `for_each_weight`'s weights, by rows, skipping the zero ones
+        // (`axis` gives 0 outside the window): a Gaussian's 25 slots hold
+        // at most 16 pixels a path reaches.
+        let [w, h] = self.size;
+        let (jx, jy) = ((i % w as usize) as i32, (i / w as usize) as i32);
+        let (mut wx, mut wy) = ([0.0; (2 * MAX_REACH + 1) as usize], [0.0; (2 * MAX_REACH + 1) as usize]);
+        self.axis(jx, pos.x, w, &mut wx);
+        self.axis(jy, pos.y, h, &mut wy);
+        let n = (2 * self.reach + 1) as usize;
+        for (ty, &row_weight) in wy[..n].iter().enumerate() {
+            if row_weight == 0.0 {
+                continue;
+            }
+            let row = (jy - self.reach + ty as i32) as usize - first_row;
+            for (tx, &column_weight) in wx[..n].iter().enumerate() {
+                if column_weight == 0.0 {
+                    continue;
+                }
+                let weight = column_weight as f64 * row_weight as f64;
+                let c = row * w as usize + (jx - self.reach + tx as i32) as usize;
+                for (sum, v) in stats[c].direct.iter_mut().zip(value) {
                     *sum += weight * v;
                 }
             }
-        });
+        }
     }
 
     /// Rows of the window in one band of paths splatted by one worker: more
