@@ -297,8 +297,8 @@ def render(
 
     _, _, width, height = local.crop
     rects: List[Optional[Tuple[int, int, int, int]]] = [None] if tiles is None else list(tiling(width, height, tiles))
+    cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
     if chunk_spp is None:
-        cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
         chunk_spp = max(1, -(-total // max(1, (4 * cpus) // len(rects))))
     todo = chunks(total, int(chunk_spp), held)
 
@@ -310,8 +310,27 @@ def render(
     packed = ray.put(packed_bytes) if packed_bytes is not None else None
     # Chunk-major: the tiles of a chunk finish together, so few chunks wait
     # for their last tile.
-    pending = {task.remote(source, packed, mode, a, b, threads_per_task, rect): (k, rect)
-               for k, (a, b) in enumerate(todo) for rect in rects}
+    jobs = [(k, rect) for k in range(len(todo)) for rect in rects]
+    # At most two tasks per worker slot in flight, submitted as others end.
+    # A render that stops (Ctrl-C, an exception in `progress`, the preview's
+    # Stop) then leaves at most these to finish in the background, their
+    # results dropped: it cancels nothing, because `ray.cancel` on a task
+    # whose reply is on its way crashes the driver in Ray 2.60 ("Check
+    # failed: it != submissible_tasks_.end()", Ray's issue 54846), the
+    # user's Python process with it.
+    window = 2 * max(1, cpus // max(1, threads_per_task))
+    pending: Dict[Any, Tuple[int, Optional[Tuple[int, int, int, int]]]] = {}
+    submitted = 0
+
+    def submit() -> None:
+        nonlocal submitted
+        while submitted < len(jobs) and len(pending) < window:
+            k, rect = jobs[submitted]
+            a, b = todo[k]
+            pending[task.remote(source, packed, mode, a, b, threads_per_task, rect)] = (k, rect)
+            submitted += 1
+
+    submit()
     parts: Dict[int, List[bytes]] = {}
     done_spp = sum(b - a for a, b in held)
     merged = 0
@@ -336,7 +355,7 @@ def render(
                 a, b = todo[k]
                 done_spp += b - a
                 merged += 1
-                if ckpt is not None and (not pending or time.monotonic() - last_write >= checkpoint_every):
+                if ckpt is not None and ((not pending and submitted == len(jobs)) or time.monotonic() - last_write >= checkpoint_every):
                     _snell.checkpoint_write(local, source_bytes, defines, mode, state, ckpt)
                     last_write = time.monotonic()
                 if view is not None:
@@ -344,16 +363,13 @@ def render(
                 if progress is not None:
                     data, h, w, names, _ = _snell.state_develop(state)
                     progress(done_spp / total, _array(data, h, w, names))
+            submit()
     except BaseException:
-        for r in pending:
-            ray.cancel(r)
         if view is not None:
             view.finish(interrupted=True)
         if own_preview:
             view.close()
         raise
-    for r in pending:
-        ray.cancel(r)
     if stopped and ckpt is not None and state is not None:
         _snell.checkpoint_write(local, source_bytes, defines, mode, state, ckpt)
     if view is not None:
