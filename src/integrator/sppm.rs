@@ -1153,13 +1153,22 @@ impl Splat {
     /// Calls `f(slot, pixel, weight)` for every slot of pixel `i` whose
     /// path started at `pos`: the pixel it stands for (`None` outside the
     /// window) and the filter's weight there (possibly 0 or negative).
+    /// Pixel `i`'s column and row, and the filter's weights along each axis
+    /// for its path that started at `pos` ([`Splat::axis`]).
     #[inline]
-    fn for_each_weight(&self, i: usize, pos: Vec2, mut f: impl FnMut(usize, Option<usize>, f64)) {
+    fn axis_weights(&self, i: usize, pos: Vec2) -> ([i32; 2], AxisWeights, AxisWeights) {
         let [w, h] = self.size;
         let (jx, jy) = ((i % w as usize) as i32, (i / w as usize) as i32);
         let (mut wx, mut wy) = ([0.0; (2 * MAX_REACH + 1) as usize], [0.0; (2 * MAX_REACH + 1) as usize]);
         self.axis(jx, pos.x, w, &mut wx);
         self.axis(jy, pos.y, h, &mut wy);
+        ([jx, jy], wx, wy)
+    }
+
+    #[inline]
+    fn for_each_weight(&self, i: usize, pos: Vec2, mut f: impl FnMut(usize, Option<usize>, f64)) {
+        let [w, h] = self.size;
+        let ([jx, jy], wx, wy) = self.axis_weights(i, pos);
         let n = 2 * self.reach + 1;
         for ty in 0..n {
             for tx in 0..n {
@@ -1177,11 +1186,8 @@ impl Splat {
         // `for_each_weight`'s weights, by rows, skipping the zero ones
         // (`axis` gives 0 outside the window): a Gaussian's 25 slots hold
         // at most 16 pixels a path reaches.
-        let [w, h] = self.size;
-        let (jx, jy) = ((i % w as usize) as i32, (i / w as usize) as i32);
-        let (mut wx, mut wy) = ([0.0; (2 * MAX_REACH + 1) as usize], [0.0; (2 * MAX_REACH + 1) as usize]);
-        self.axis(jx, pos.x, w, &mut wx);
-        self.axis(jy, pos.y, h, &mut wy);
+        let w = self.size[0] as usize;
+        let ([jx, jy], wx, wy) = self.axis_weights(i, pos);
         let n = (2 * self.reach + 1) as usize;
         for (ty, &row_weight) in wy[..n].iter().enumerate() {
             if row_weight == 0.0 {
@@ -1193,7 +1199,7 @@ impl Splat {
                     continue;
                 }
                 let weight = column_weight as f64 * row_weight as f64;
-                let c = row * w as usize + (jx - self.reach + tx as i32) as usize;
+                let c = row * w + (jx - self.reach + tx as i32) as usize;
                 for (sum, v) in stats[c].direct.iter_mut().zip(value) {
                     *sum += weight * v;
                 }
