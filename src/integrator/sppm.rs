@@ -1150,9 +1150,6 @@ impl Splat {
         }
     }
 
-    /// Calls `f(slot, pixel, weight)` for every slot of pixel `i` whose
-    /// path started at `pos`: the pixel it stands for (`None` outside the
-    /// window) and the filter's weight there (possibly 0 or negative).
     /// Pixel `i`'s column and row, and the filter's weights along each axis
     /// for its path that started at `pos` ([`Splat::axis`]).
     #[inline]
@@ -1165,6 +1162,9 @@ impl Splat {
         ([jx, jy], wx, wy)
     }
 
+    /// Calls `f(slot, pixel, weight)` for every slot of pixel `i` whose
+    /// path started at `pos`: the pixel it stands for (`None` outside the
+    /// window) and the filter's weight there (possibly 0 or negative).
     #[inline]
     fn for_each_weight(&self, i: usize, pos: Vec2, mut f: impl FnMut(usize, Option<usize>, f64)) {
         let [w, h] = self.size;
