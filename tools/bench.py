@@ -20,6 +20,10 @@ then times N renders (mi.render + dr.eval + dr.sync_thread only) and reports
 width*height*spp / seconds.
 
 Prints both medians and the ratio snell/mitsuba (samples/s; > 1 = Snell faster).
+Each run also prints its CPU seconds per wall second (Snell: render_cpu_seconds
+over render_seconds; Mitsuba: the process's CPU time over the same span), and a
+run below 0.9 of its renderer's best is named in a note: another process took
+CPU from it, so the medians may be off (the JSON lists such runs).
 
 --mesh 1M,4M: the mesh benchmark instead (bumpy spheres of that many triangles,
 written once to /tmp/snell-mesh-bench as binary PLY and OBJ, on a floor under a
@@ -137,7 +141,7 @@ def bench_snell(args, params):
         cmd += ["-D", f"{k}={v}"]
     cmd += ["--threads", str(args.threads), "--stats", "/tmp/stats.json", "--mode", args.mode]
     print("snell: " + " ".join(cmd))
-    sps, secs = [], []
+    sps, secs, cpu_per_wall = [], [], []
     for i in range(args.runs):
         if os.path.exists("/tmp/stats.json"):
             os.remove("/tmp/stats.json")
@@ -150,9 +154,12 @@ def bench_snell(args, params):
             st = json.load(f)
         sps.append(float(st["samples_per_second"]))
         secs.append(float(st["render_seconds"]))
-        print(f"  run {i + 1}: {secs[-1]:.3f} s, {sps[-1] / 1e6:.3f} M samples/s")
+        cpu_per_wall.append(float(st["render_cpu_seconds"]) / secs[-1])
+        print(f"  run {i + 1}: {secs[-1]:.3f} s, {sps[-1] / 1e6:.3f} M samples/s, "
+              f"CPU/wall {cpu_per_wall[-1]:.2f}")
     return {"samples_per_second": statistics.median(sps),
-            "render_seconds": statistics.median(secs), "runs": len(sps)}
+            "render_seconds": statistics.median(secs), "runs": len(sps),
+            "cpu_per_wall": cpu_per_wall}
 
 
 # --------------------------------------------------------------------------- Mitsuba
@@ -176,22 +183,26 @@ def mitsuba_worker(args, params):
     n = int(w) * int(h) * args.spp
 
     def one():
-        t = time.perf_counter()
+        """Wall seconds and the process's CPU seconds (all threads) of a render."""
+        t, c = time.perf_counter(), time.process_time()
         img = mi.render(scene, spp=args.spp, seed=0)
         dr.eval(img)
         dr.sync_thread()
-        return time.perf_counter() - t
+        return time.perf_counter() - t, time.process_time() - c
 
-    warm = one()  # includes tracing + JIT compilation; not counted
+    warm, _ = one()  # includes tracing + JIT compilation; not counted
     print(f"  warm-up (incl. JIT): {warm:.3f} s", file=sys.stderr)
-    secs = []
+    secs, cpu_per_wall = [], []
     for i in range(args.runs):
-        secs.append(one())
-        print(f"  run {i + 1}: {secs[-1]:.3f} s, {n / secs[-1] / 1e6:.3f} M samples/s",
-              file=sys.stderr)
+        wall, cpu = one()
+        secs.append(wall)
+        cpu_per_wall.append(cpu / wall)
+        print(f"  run {i + 1}: {wall:.3f} s, {n / wall / 1e6:.3f} M samples/s, "
+              f"CPU/wall {cpu_per_wall[-1]:.2f}", file=sys.stderr)
     med = statistics.median(secs)
     print(json.dumps({"samples_per_second": n / med, "render_seconds": med,
-                      "runs": len(secs), "width": int(w), "height": int(h),
+                      "runs": len(secs), "cpu_per_wall": cpu_per_wall,
+                      "width": int(w), "height": int(h),
                       "threads": dr.thread_count(), "mitsuba": mi.__version__,
                       "variant": mi.variant()}))
 
@@ -515,8 +526,27 @@ def bench_scene(args):
     if s and m:
         res["ratio_snell_over_mitsuba"] = s["samples_per_second"] / m["samples_per_second"]
         print(f"ratio snell/mitsuba (samples/s): {res['ratio_snell_over_mitsuba']:.3f}")
+    contended = {name: runs for name, r in (("snell", s), ("mitsuba", m))
+                 if r and (runs := contended_runs(r.get("cpu_per_wall", [])))}
+    if contended:
+        res["contended_runs"] = contended
+        which = "; ".join(f"{name} run {', '.join(str(i + 1) for i in runs)}"
+                          for name, runs in contended.items())
+        print(f"note: {which} got less CPU per wall second than the best run of the same "
+              f"renderer: another process competed, and the medians above may be off")
     print()
     return res
+
+
+def contended_runs(cpu_per_wall, tolerance=0.9):
+    """Indices of the runs whose CPU seconds per wall second fell below
+    `tolerance` times the best run's: on a 2-core machine a competing process
+    takes CPU from the render's threads, so the ratio drops while the wall time
+    grows (a render's own serial parts lower every run's ratio alike)."""
+    if len(cpu_per_wall) < 2:
+        return []
+    best = max(cpu_per_wall)
+    return [i for i, r in enumerate(cpu_per_wall) if r < tolerance * best]
 
 
 # ------------------------------------------------------------------------ efficiency
